@@ -1,0 +1,1 @@
+"""Conformance suite for XA-C1 controllers (pytest plugin and checks)."""

@@ -1,0 +1,1 @@
+"""Passive decoder of XA-C1 traffic between a host and a controller."""

@@ -1,0 +1,53 @@
+"""``xac1 parse`` and ``xac1 --version`` as a user runs them (a real subprocess)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import xac1_proto
+
+
+def xac1(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "xac1_proto", *args], capture_output=True,
+                          text=True, timeout=60)
+
+
+def test_version():
+    r = xac1("--version")
+    assert r.returncode == 0 and xac1_proto.__version__ in r.stdout
+
+
+def test_parse_vendor_answer_prints_fields():
+    r = xac1("parse", r"0RP39302012345\r\n", "--role", "answer")
+    assert r.returncode == 0, r.stderr
+    assert "N=3 V=9 A=3 O=0 Pos=0x012345 (74565)" in r.stdout
+
+
+def test_parse_letter_o_explains_and_exits_2():
+    r = xac1("parse", r"ORP3\r\n", "--role", "command")
+    assert r.returncode == 2
+    assert "letter O" in r.stderr and "(letter-o)" in r.stderr
+    assert "0RP command N=3" in r.stderr  # what it was read as
+    assert r"'0RP3' CR LF" in r.stderr  # and the frame to send instead
+
+
+def test_parse_hex_input_and_alarm_meaning():
+    r = xac1("parse", "30 25 25 30 45 0d 0a", "--hex", "--role", "answer")
+    assert r.returncode == 0 and "emergency stop" in r.stdout
+
+
+def test_parse_lists_every_deviation():
+    r = xac1("parse", r"0RS1\r\n", "--role", "answer")
+    assert r.returncode == 2
+    assert "(bad-length)" in r.stderr and "(missing-2)" in r.stderr
+
+
+def test_parse_without_terminator_says_so():
+    r = xac1("parse", "0RV", "--role", "command")
+    assert r.returncode == 2 and "no LF at the end" in r.stderr
+
+
+def test_bad_hex_is_a_clear_error():
+    r = xac1("parse", "3Z", "--hex", "--role", "command")
+    assert r.returncode != 0 and "--hex" in r.stderr and "Traceback" not in r.stderr

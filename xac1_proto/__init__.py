@@ -1,0 +1,15 @@
+"""xac1-proto: protocol analyzer and conformance kit for the SUS XA-C1 actuator controller."""
+
+from . import spec
+from .codec import diagnose, parse, show_bytes
+from .errors import FrameError, Violation, XAC1Error
+from .framer import FrameBytes, Framer, Junk
+from .frames import *  # noqa: F403
+from .frames import FRAME_CLASSES, Frame
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "FRAME_CLASSES", "Frame", "FrameBytes", "FrameError", "Framer", "Junk", "Violation", "XAC1Error",
+    "diagnose", "parse", "show_bytes", "spec",
+]

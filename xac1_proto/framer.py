@@ -1,0 +1,182 @@
+"""Sans-IO stream framer: bytes in (with a timestamp), frames and junk out (PROTOCOL.md "Framing").
+
+A frame starts at a plausible frame start and ends at LF. A plausible start is the digit ``0`` followed
+by a header-like byte (a letter or ``%``), or the letter ``O`` followed by a known header's last two
+characters (so the lenient decoder can name a host's ``letter-o``). Bytes before a start, lines that do
+not start like a frame, a frame start cut short by the next full header (``0RP`` + ``0RP3\\r\\n``), and
+runs of ``MAX_FRAME`` bytes with no LF come out as junk. No valid frame contains a full header after
+its first byte, so resyncing on one never splits a good frame.
+
+Decisions depend only on the bytes, never on how they were chunked: feeding a stream whole, byte by
+byte or in any chunks gives the same events. Every byte fed comes out in exactly one event; ``flush()``
+(end of data, or an idle line) turns a partial frame into junk.
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass
+from typing import Final
+
+from . import spec
+
+MAX_FRAME: Final = 64  # bytes a frame may reach without LF before it becomes junk
+
+_TAILS: Final = frozenset(h[1:].encode() for hs in spec.HEADERS.values() for h in hs)
+_SECOND: Final = frozenset(t[0] for t in _TAILS)
+_HEADERISH: Final = frozenset(
+    b for b in range(256) if chr(b).isascii() and (chr(b).isalpha() or chr(b) == "%")
+)
+_ZERO: Final = spec.LEAD[0]
+_O: Final = spec.LETTER_O[0]
+_LF: Final = spec.LF
+_UNDECIDED: Final = -2
+
+
+@dataclass(frozen=True, slots=True)
+class FrameBytes:
+    """A candidate frame: from a frame start to its LF. ``offset`` counts bytes fed before it."""
+
+    raw: bytes
+    offset: int
+    t_first: float | None
+    t_last: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class Junk:
+    """Bytes that form no frame, and why: ``no-frame-start``, ``truncated``, ``overflow``,
+    ``flushed``."""
+
+    raw: bytes
+    offset: int
+    t_first: float | None
+    t_last: float | None
+    reason: str
+
+
+Event = FrameBytes | Junk
+
+
+def _strong_start(buf: bytearray, p: int) -> int:
+    """1 if a full header (``0``/``O`` + known tail) starts at p, 0 if not, _UNDECIDED if the
+    buffer ends before that is known."""
+    if buf[p] not in (_ZERO, _O):
+        return 0
+    tail = bytes(buf[p + 1: p + 3])
+    if len(tail) == 2:
+        return 1 if tail in _TAILS else 0
+    if not tail or (tail[0] in _SECOND and any(t.startswith(tail) for t in _TAILS)):
+        return _UNDECIDED
+    return 0
+
+
+def _weak_start(buf: bytearray, p: int) -> int:
+    """1 if a frame may start at p (``0`` + a letter or ``%``, or ``O`` + a known tail)."""
+    b = buf[p]
+    if b == _ZERO:
+        if p + 1 >= len(buf):
+            return _UNDECIDED
+        return 1 if buf[p + 1] in _HEADERISH else 0
+    if b == _O:
+        return _strong_start(buf, p)
+    return 0
+
+
+class Framer:
+    """Split a byte stream into ``FrameBytes`` and ``Junk`` events; see the module docstring."""
+
+    def __init__(self, max_frame: int = MAX_FRAME) -> None:
+        if max_frame < 16:
+            raise ValueError(f"max_frame must be at least 16 (the longest frame), got {max_frame}")
+        self.max_frame = max_frame
+        self._buf = bytearray()
+        self._base = 0  # stream offset of _buf[0]
+        self._ends: list[int] = []  # stream offset just past each fed chunk still in _buf
+        self._times: list[float | None] = []
+
+    @property
+    def bytes_in(self) -> int:
+        """Bytes fed so far."""
+        return self._base + len(self._buf)
+
+    @property
+    def pending(self) -> int:
+        """Bytes fed but not yet in an event."""
+        return len(self._buf)
+
+    def feed(self, data: bytes, t: float | None = None) -> list[Event]:
+        """Take the next bytes of the stream (all received at time ``t``); the events they complete."""
+        if data:
+            self._buf += data
+            self._ends.append(self.bytes_in)
+            self._times.append(t)
+        return self._drain(final=False)
+
+    def flush(self) -> list[Event]:
+        """End of data (or an idle line): what is pending comes out, a partial frame as junk."""
+        return self._drain(final=True)
+
+    def _drain(self, final: bool) -> list[Event]:
+        out: list[Event] = []
+        while self._buf:
+            event = self._next(final)
+            if event is None:
+                break
+            out.append(event)
+        return out
+
+    def _next(self, final: bool) -> Event | None:
+        buf = self._buf
+        start = _weak_start(buf, 0)
+        if start == _UNDECIDED and not final:
+            return None
+        if start == 1:
+            return self._frame_candidate(final)
+        return self._junk_run(final)
+
+    def _frame_candidate(self, final: bool) -> Event | None:
+        buf = self._buf
+        lf = buf.find(_LF, 0, self.max_frame)
+        limit = lf if lf >= 0 else min(len(buf), self.max_frame)
+        for p in range(1, limit):
+            found = _strong_start(buf, p)
+            if found == 1:
+                return self._emit(p, "truncated")
+            if found == _UNDECIDED and not final:
+                return None
+        if lf >= 0:
+            return self._emit(lf + 1, None)
+        if len(buf) >= self.max_frame:
+            return self._emit(self.max_frame, "overflow")
+        return self._emit(len(buf), "flushed") if final else None
+
+    def _junk_run(self, final: bool) -> Event | None:
+        buf = self._buf
+        limit = min(len(buf), self.max_frame)
+        for p in range(1, limit):
+            if buf[p - 1] == _LF:
+                return self._emit(p, "no-frame-start")
+            found = _weak_start(buf, p)
+            if found == 1:
+                return self._emit(p, "no-frame-start")
+            if found == _UNDECIDED and not final:
+                return None
+        if buf[limit - 1] == _LF or len(buf) >= self.max_frame or final:
+            return self._emit(limit, "no-frame-start")
+        return None
+
+    def _time_at(self, offset: int) -> float | None:
+        return self._times[bisect.bisect_right(self._ends, offset)]
+
+    def _emit(self, n: int, reason: str | None) -> Event:
+        raw = bytes(self._buf[:n])
+        offset = self._base
+        t_first, t_last = self._time_at(offset), self._time_at(offset + n - 1)
+        del self._buf[:n]
+        self._base += n
+        drop = bisect.bisect_right(self._ends, self._base)
+        del self._ends[:drop], self._times[:drop]
+        if reason is None:
+            return FrameBytes(raw, offset, t_first, t_last)
+        return Junk(raw, offset, t_first, t_last, reason)
