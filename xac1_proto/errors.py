@@ -38,3 +38,40 @@ class FrameError(XAC1Error, ValueError):
     @property
     def violation(self) -> Violation:
         return Violation(self.code, self.offset, str(self))
+
+
+class ProtocolError(XAC1Error):
+    """The device's answer broke the protocol (wrong length, missing ``2``, echo differs, answer to
+    another command...). ``.code`` is the violation code, ``.raw`` the bytes as received."""
+
+    def __init__(self, code: str, message: str, raw: bytes = b"",
+                 violations: list[Violation] | None = None):
+        super().__init__(message)
+        self.code = code
+        self.raw = raw
+        self.violations = list(violations or [])
+
+
+class AlarmError(XAC1Error):
+    """The device answered with the alarm answer ``0%%Ec``. ``.code`` is the alarm code (int),
+    ``.meaning`` its meaning from the spec table, ``.frame`` the AlarmAnswer."""
+
+    def __init__(self, code: int, meaning: str, frame: object = None, raw: bytes = b""):
+        super().__init__(f"alarm {code:02X}: {meaning}")
+        self.code = code
+        self.meaning = meaning
+        self.frame = frame
+        self.raw = raw
+
+
+class ResponseTimeout(XAC1Error, TimeoutError):
+    """No complete answer arrived in time. ``.partial`` holds the bytes that did arrive."""
+
+    def __init__(self, message: str, partial: bytes = b""):
+        super().__init__(message)
+        self.partial = partial
+
+
+class CommunicationHalted(XAC1Error):
+    """The vendor's host duty: after too many communication-error answers in a row the client refuses
+    to send until ``rearm()`` (PROTOCOL.md "Behaviour the vendor text states")."""

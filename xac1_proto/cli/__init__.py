@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import sys
 from typing import Final
 
@@ -15,7 +16,21 @@ from .. import __version__
 # name -> module implementing it
 COMMANDS: Final[dict[str, str]] = {
     "parse": "xac1_proto.cli.parse_cmd",
+    "sim": "xac1_proto.sim.cli",
+    "send": "xac1_proto.cli.send_cmd",
+    "console": "xac1_proto.cli.console_cmd",
+    "conformance": "conformance.cli",
+    "sniff": "sniffer.sniff_cli",
+    "proxy": "sniffer.proxy_cli",
+    "decode": "sniffer.decode_cli",
 }
+
+
+def _exists(module_name: str) -> bool:
+    try:
+        return importlib.util.find_spec(module_name) is not None
+    except ModuleNotFoundError:
+        return False
 
 
 def _build(argv: list[str]) -> argparse.ArgumentParser:
@@ -27,6 +42,8 @@ def _build(argv: list[str]) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     wanted = next((a for a in argv if not a.startswith("-")), None)
     for name, module_name in COMMANDS.items():
+        if not _exists(module_name):  # a subcommand still being built
+            continue
         module = importlib.import_module(module_name)
         p = sub.add_parser(name, help=module.HELP, description=module.HELP)
         if name == wanted:

@@ -1,0 +1,89 @@
+"""Our own recording format: JSON lines of raw chunks, written so that a crash loses nothing.
+
+Line 1: ``{"type":"recording","version":1,"started":<unix s>,"source":"<free text>"}``; then one line
+per chunk as it was seen: ``{"type":"chunk","t":<unix s or null>,"dir":"host"|"device","data":"<hex>"}``
+(``"error":"..."`` when the source flagged the bytes). Each line is written and flushed to the OS as
+soon as the chunk is seen, so a process killed with kill -9 keeps every line written; the file is
+fsynced at least once a second (and on close) against power loss.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any
+
+from ..chunk import Chunk
+
+VERSION = 1
+FSYNC_EVERY_S = 1.0
+
+
+class RecordingWriter:
+    """Append chunks to a recording file; a context manager that flushes and closes."""
+
+    def __init__(self, path: str | os.PathLike[str], source: str = "",
+                 started: float | None = None) -> None:
+        self.path = Path(path)
+        self._f: IO[str] = open(self.path, "w", encoding="ascii", buffering=1)  # noqa: SIM115
+        self._last_sync = time.monotonic()
+        self._write({"type": "recording", "version": VERSION,
+                     "started": time.time() if started is None else started, "source": source})
+
+    def _write(self, obj: dict[str, Any]) -> None:
+        self._f.write(json.dumps(obj, separators=(",", ":")) + "\n")
+        self._f.flush()
+        now = time.monotonic()
+        if now - self._last_sync >= FSYNC_EVERY_S:
+            os.fsync(self._f.fileno())
+            self._last_sync = now
+
+    def write(self, chunk: Chunk) -> None:
+        obj: dict[str, Any] = {"type": "chunk", "t": chunk.t, "dir": chunk.dir, "data": chunk.data.hex()}
+        if chunk.error:
+            obj["error"] = chunk.error
+        self._write(obj)
+
+    def close(self) -> None:
+        if not self._f.closed:
+            self._f.flush()
+            os.fsync(self._f.fileno())
+            self._f.close()
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def is_recording(first_line: str) -> bool:
+    """Content sniffing: does this first line start one of our recordings?"""
+    try:
+        obj = json.loads(first_line)
+    except ValueError:
+        return False
+    return isinstance(obj, dict) and obj.get("type") == "recording"
+
+
+def read_recording(lines: Iterator[str], name: str = "<recording>",
+                   problems: list[str] | None = None) -> Iterator[Chunk]:
+    """Chunks of a recording; a malformed line is noted in ``problems`` (file and line) and skipped."""
+    for number, line in enumerate(lines, 1):
+        line = line.strip()
+        if not line:
+            continue
+        try:
+            obj = json.loads(line)
+            if obj.get("type") == "recording":
+                continue
+            if obj.get("type") != "chunk" or obj.get("dir") not in ("host", "device"):
+                raise ValueError("not a chunk line")
+            yield Chunk(obj["t"], obj["dir"], bytes.fromhex(obj["data"]), obj.get("error"))
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            if problems is None:
+                raise ValueError(f"{name}:{number}: {exc}") from None
+            problems.append(f"{name}:{number}: malformed recording line ({exc})")

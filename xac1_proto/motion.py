@@ -1,0 +1,72 @@
+"""Motion timing shared by the simulator (how long a move takes) and the client (how long to wait).
+
+The vendor's speed tables are missing (PROTOCOL.md silent item 15): by default speed number V n moves
+at n x 1,000 pulses/s, direct-move speed vel n at n x 500 pulses/s, and homing at 10,000 pulses/s with
+the mid ramp. A move follows a trapezoidal profile whose ramp (0 to full speed) takes the acceleration
+number's time (1: 400 ms, 2: 200 ms, 3: 100 ms); a move too short to reach full speed is triangular.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from . import spec
+
+
+@dataclass(frozen=True)
+class SpeedTable:
+    """Pulses per second for each speed number, and the homing move."""
+
+    v_pps: float = 1000.0  # V n -> n * v_pps
+    vel_pps: float = 500.0  # vel n -> n * vel_pps
+    homing_pps: float = 10_000.0
+    homing_accel: int = 2
+
+    def point_speed(self, v: int) -> float:
+        return max(v, 1) * self.v_pps
+
+    def direct_speed(self, vel: int) -> float:
+        return max(vel, 1) * self.vel_pps
+
+
+DEFAULT_SPEEDS = SpeedTable()
+
+
+def ramp_time(a: int) -> float:
+    """Seconds from standstill to full speed for acceleration number ``a`` (0 or unknown: low)."""
+    return spec.ACCEL_RAMP_S.get(a, spec.ACCEL_RAMP_S[1])
+
+
+def move_time(distance: int, speed_pps: float, a: int) -> float:
+    """Seconds a trapezoidal move of ``distance`` pulses takes (0 for no distance)."""
+    distance = abs(distance)
+    if distance == 0:
+        return 0.0
+    ramp = ramp_time(a)
+    if distance >= speed_pps * ramp:  # reaches full speed: ramp up + cruise + ramp down
+        return distance / speed_pps + ramp
+    return 2.0 * math.sqrt(distance * ramp / speed_pps)  # triangular
+
+
+def position_at(start: int, target: int, speed_pps: float, a: int, elapsed: float) -> int:
+    """Where a move from ``start`` to ``target`` is after ``elapsed`` seconds."""
+    total = move_time(target - start, speed_pps, a)
+    if elapsed <= 0 or total == 0:
+        return start if elapsed <= 0 else target
+    if elapsed >= total:
+        return target
+    distance = abs(target - start)
+    ramp = ramp_time(a)
+    accel = speed_pps / ramp
+    peak = min(speed_pps, math.sqrt(distance * accel))
+    t_ramp = peak / accel
+    if elapsed < t_ramp:
+        done = 0.5 * accel * elapsed**2
+    elif elapsed <= total - t_ramp:
+        done = 0.5 * accel * t_ramp**2 + peak * (elapsed - t_ramp)
+    else:
+        left = total - elapsed
+        done = distance - 0.5 * accel * left**2
+    step = int(round(min(max(done, 0), distance)))
+    return start + step if target >= start else start - step
