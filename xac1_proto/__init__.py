@@ -6,6 +6,7 @@ from .errors import FrameError, Violation, XAC1Error
 from .framer import FrameBytes, Framer, Junk
 from .frames import *  # noqa: F403
 from .frames import FRAME_CLASSES, Frame
+from .urlhandler import registered as _xac1sim_url  # noqa: F401  (registers xac1sim://)
 
 __version__ = "0.1.0"
 

@@ -113,7 +113,7 @@ class Frame:
             field = spec.FIELDS[name]
             shown = value if field.text else field.show(value)
             extra = f" ({value})" if field.width > 1 and not field.text else ""
-            parts.append(f"{field.label}={'0x' if field.width > 2 else ''}{shown}{extra}")
+            parts.append(f"{field.label}={'0x' if field.width > 2 and not field.text else ''}{shown}{extra}")
         return " ".join(parts)
 
 

@@ -1,0 +1,203 @@
+"""The simulator's settings in one place: every PROTOCOL.md silent-point choice, line faults, deviations.
+
+``SimConfig`` holds the defaults PROTOCOL.md "Where the vendor text is silent" fixes; each field names
+the silent item it covers, so a test can run the simulator with other choices. ``LineFaults`` spoils
+answer bytes on the way out (seedable). ``DEVIATIONS`` lists the named ways to break one *stated* rule
+on purpose (the conformance suite proves itself against them); they are not faults a device may have.
+
+``config_from_options`` turns string options (a ``xac1sim://`` query string, ``xac1 sim`` flags) into a
+``SimConfig`` with a clear error for unknown names or bad values; ``OPTIONS`` documents them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Final
+
+from .. import spec
+from ..motion import DEFAULT_SPEEDS, SpeedTable
+
+# name -> (rule broken, PROTOCOL.md section). Each deviation breaks exactly one stated rule.
+DEVIATIONS: Final[dict[str, tuple[str, str]]] = {
+    "no-2": ("answers that carry the mandatory `2` are sent without it (one byte short)",
+             "Fields; Frames"),
+    "wrong-length": ("every answer gets one extra space before CR LF", "Frames (byte counts)"),
+    "echo-differs": ("echo answers (0WP, 0MV, 0WS, 0CM) differ from the command in one field "
+                     "(Pos, Pos, O, m); the command itself is carried out as sent",
+                     "Frames (same as the command)"),
+    "alarm-not-latched": ("an alarm (other than emergency stop) is answered once, then forgotten",
+                          "Behaviour the vendor text states (latched alarm)"),
+    "wrong-reset-answer": ("0%C answers `0%C01` instead of `0%C00` (the reset still happens)",
+                           "Frames (0%C); Behaviour (alarm reset)"),
+    "rc-before-homing-not-ffffff": ("0RC before homing answers Pos `000000` instead of `FFFFFF`",
+                                    "Behaviour the vendor text states (0RC before homing)"),
+    "write-not-stored": ("0WP and 0WC answer as usual but the point table is not changed",
+                         "Frames (0WP write, 0WC store)"),
+    "outputs-not-stored": ("0WS echoes but the OUT ports are not changed", "Frames (0WS)"),
+    "move-not-performed": ("0MP/0MV answer as usual but the axis stays where it was (homing itself "
+                           "still happens)", "Frames (0MP, 0MV); Behaviour (moves)"),
+    "lf-only": ("answers end with LF only, no CR", "Framing (CR LF)"),
+    "letter-o": ("answers start with the letter `O` instead of the digit `0`", "Framing (leading 0)"),
+    "silent-on-malformed": ("a malformed command latches alarm 01 but gets no answer",
+                            "Behaviour (strict request/answer); silent item 1"),
+    "swapped-fields": ("point answers of 0RP, 0RC, 0WC, 0MP carry V and A swapped (invisible when "
+                       "V = A)", "Frames (0RP N V A O 2 Pos)"),
+    "wrong-n": ("answers of 0RP, 0WC, 0MP carry another N (N + 1)", "Frames (answers carry N)"),
+    "estop-cleared": ("0%C clears emergency stop and answers `0%C00`",
+                      "Behaviour the vendor text states (reset clears all but 0E)"),
+}
+
+
+@dataclass(frozen=True)
+class LineFaults:
+    """Spoil answer bytes on their way out. Probabilities are per byte (corrupt, drop) or per answer
+    (delay); ``seed`` makes the spoiling reproducible."""
+
+    corrupt: float = 0.0  # a byte's bits are flipped
+    drop: float = 0.0  # a byte is lost
+    delay: float = 0.0  # an answer (and those behind it) comes ``delay_s`` late
+    delay_s: float = 0.1
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("corrupt", "drop", "delay"):
+            p = getattr(self, name)
+            if not 0.0 <= p <= 1.0:
+                raise ValueError(f"line fault {name}: probability must be 0..1, got {p}")
+        if self.delay_s < 0:
+            raise ValueError(f"line fault delay_s must be >= 0, got {self.delay_s}")
+
+    @property
+    def active(self) -> bool:
+        return bool(self.corrupt or self.drop or self.delay)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything the simulator may be told; defaults are PROTOCOL.md's choices."""
+
+    version: str = "100"  # 0RV's answer, three digits
+    time_scale: float = 1.0  # scales motion and turnaround; 0 = instant
+    wire_timing: bool = False  # pace answer bytes at 9600 baud (not scaled)
+    turnaround_s: float = 0.002  # silent item 17: command's last byte -> answer's first byte
+    speeds: SpeedTable = DEFAULT_SPEEDS  # silent item 15
+    stroke: tuple[int, int] = (0, spec.UNKNOWN_POSITION - 1)  # silent item 5
+    homing_distance: int = 10_000  # pulses homing travels when the position is unknown
+    malformed_alarm: int = spec.ALARM_COMM  # silent item 1
+    accept_lowercase: bool = False  # silent item 2: lower-case hex is malformed by default
+    estop_rehome: bool = True  # silent item 3: after estop release the axis must home again
+    store_before_homing_alarm: int = spec.ALARM_POSITION  # silent item 4
+    position_alarm: int = spec.ALARM_POSITION  # silent item 5: beyond the stroke, unwritten point
+    unwritten_point: tuple[int, int, int, int] = (0, 0, 0, 0)  # silent item 6: V, A, O, Pos
+    point_move_sets_outputs: bool = True  # silent item 8
+    discard_during_move: bool = True  # silent item 10 (False: bytes wait until the answer is sent)
+    cm0_sticky: bool = False  # silent item 11 (True: mode 0 stays until the next 0CM1)
+    faults: LineFaults = field(default_factory=LineFaults)
+    deviations: frozenset[str] = frozenset()
+
+    def __post_init__(self) -> None:
+        if not (len(self.version) == 3 and self.version.isdigit() and self.version.isascii()):
+            raise ValueError(f"version must be three digits (100 = 1.00), got {self.version!r}")
+        if self.time_scale < 0:
+            raise ValueError(f"time_scale must be >= 0, got {self.time_scale}")
+        if self.turnaround_s < 0:
+            raise ValueError(f"turnaround must be >= 0, got {self.turnaround_s}")
+        lo, hi = self.stroke
+        if not 0 <= lo <= hi < spec.UNKNOWN_POSITION:
+            raise ValueError(f"stroke must be LO:HI with 0 <= LO <= HI <= 0xFFFFFE, got {lo:#x}:{hi:#x}")
+        unknown = sorted(set(self.deviations) - set(DEVIATIONS))
+        if unknown:
+            raise ValueError(f"unknown deviation {', '.join(unknown)}; known: {', '.join(DEVIATIONS)}")
+        object.__setattr__(self, "deviations", frozenset(self.deviations))
+
+    def replace(self, **changes: object) -> SimConfig:
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+
+# ---- string options: one table for the xac1sim:// query string and the CLI ----
+
+OPTIONS: Final[dict[str, str]] = {
+    "time_scale": "float; motion and turnaround scale, 0 = instant (default 1)",
+    "wire_timing": "0/1; pace answers at 9600 baud (default 0)",
+    "version": "three digits, 0RV's answer (default 100)",
+    "turnaround": "milliseconds from a command's last byte to its answer (default 2)",
+    "stroke": "LO:HI positions a move may reach, decimal or 0x-hex (default 0:0xFFFFFE)",
+    "deviation": "a name from DEVIATIONS; repeat or comma-separate for several",
+    "seed": "int; seeds the line faults",
+    "noise": "probability a sent byte is corrupted",
+    "drop": "probability a sent byte is lost",
+    "delay": "milliseconds an answer is delayed (with probability delay_p, default 1)",
+    "delay_p": "probability an answer is delayed",
+    "accept_lowercase": "0/1; silent item 2",
+    "estop_rehome": "0/1; silent item 3",
+    "point_move_sets_outputs": "0/1; silent item 8",
+    "discard_during_move": "0/1; silent item 10",
+    "cm0_sticky": "0/1; silent item 11",
+    "malformed_alarm": "hex alarm code for malformed commands (default 01)",
+    "position_alarm": "hex alarm code for moves beyond the stroke or to unwritten points (default 08)",
+    "store_before_homing_alarm": "hex alarm code for 0WC before homing (default 08)",
+}
+
+
+def parse_int(text: str) -> int:
+    """Decimal or 0x-hex."""
+    return int(text, 16) if text.lower().startswith("0x") else int(text, 10)
+
+
+def _bool(text: str) -> bool:
+    low = text.strip().lower()
+    if low in ("1", "true", "yes", "on"):
+        return True
+    if low in ("0", "false", "no", "off"):
+        return False
+    raise ValueError(f"expected 0 or 1, got {text!r}")
+
+
+def config_from_options(options: Mapping[str, str | Iterable[str]],
+                        base: SimConfig | None = None) -> SimConfig:
+    """A config from string options (see ``OPTIONS``); raises ValueError naming the bad option."""
+    cfg = base or SimConfig()
+    changes: dict[str, object] = {}
+    faults: dict[str, object] = {}
+    deviations = set(cfg.deviations)
+    for name, raw in options.items():
+        values = [raw] if isinstance(raw, str) else list(raw)
+        if name not in OPTIONS:
+            raise ValueError(f"unknown simulator option {name!r}; known: {', '.join(OPTIONS)}")
+        value = values[-1]
+        try:
+            if name == "deviation":
+                for v in values:
+                    deviations.update(x.strip() for x in v.split(",") if x.strip())
+            elif name == "time_scale":
+                changes["time_scale"] = float(value)
+            elif name == "version":
+                changes["version"] = value
+            elif name == "turnaround":
+                changes["turnaround_s"] = float(value) / 1000.0
+            elif name == "stroke":
+                lo, _, hi = value.partition(":")
+                changes["stroke"] = (parse_int(lo), parse_int(hi))
+            elif name == "seed":
+                faults["seed"] = int(value)
+            elif name == "noise":
+                faults["corrupt"] = float(value)
+            elif name == "drop":
+                faults["drop"] = float(value)
+            elif name == "delay":
+                faults["delay_s"] = float(value) / 1000.0
+                faults.setdefault("delay", 1.0)
+            elif name == "delay_p":
+                faults["delay"] = float(value)
+            elif name.endswith("_alarm"):
+                changes[name] = int(value, 16)
+            else:
+                changes[name] = _bool(value)
+        except ValueError as exc:
+            raise ValueError(f"simulator option {name}={value!r}: {exc}") from None
+    if faults:
+        changes["faults"] = dataclasses.replace(cfg.faults, **faults)  # type: ignore[arg-type]
+    changes["deviations"] = frozenset(deviations)
+    return dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
