@@ -1,0 +1,148 @@
+"""``xac1 console``: drive a controller by hand, one named command or raw frame a line.
+
+With a terminal the prompt is prompt_toolkit's (history, tab completion); without one (stdin a pipe or
+a file) lines are read plainly, so scripts can drive it too. Moving commands ask for confirmation
+unless ``--yes``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..client import Client
+
+HELP = "interactive console: named commands (read 3, home, go ...), raw frames (!0RV), history, help"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--port", required=True, metavar="URL",
+                   help="serial device or pyserial URL (/dev/ttyUSB0, socket://host:port, xac1sim://)")
+    p.add_argument("--yes", action="store_true", help="do not ask before commands that move the axis")
+    p.add_argument("--timeout", type=float, default=0.5, help="turnaround timeout in seconds (default 0.5)")
+    p.add_argument("--time-scale", type=float, default=1.0,
+                   help="scale of move timeouts (a simulator running faster than real time)")
+    p.add_argument("--history", metavar="FILE", help="keep the command history in FILE across sessions")
+
+
+def _reader(history: str | None) -> tuple[Callable[[str], str], Callable[[str], str]]:
+    """Functions that read one line after a prompt (EOFError at the end): command lines, and answers
+    to questions (kept out of the history)."""
+    if not sys.stdin.isatty():
+        def plain(prompt: str) -> str:
+            print(prompt, end="", flush=True)
+            line = sys.stdin.readline()
+            if not line:
+                raise EOFError
+            print(line.rstrip("\r\n"))  # echoed, so a transcript reads like a session
+            return line.rstrip("\r\n")
+        return plain, plain
+    from prompt_toolkit import PromptSession
+    from prompt_toolkit.completion import NestedCompleter, WordCompleter
+    from prompt_toolkit.history import FileHistory, InMemoryHistory
+
+    from ..console.commands import COMMANDS
+
+    nested: dict[str, object] = {name: None for name in COMMANDS}
+    for name, cmd in COMMANDS.items():
+        if cmd.keys:
+            nested[name] = WordCompleter([k + "=" for k in cmd.keys])
+    nested["help"] = WordCompleter(list(COMMANDS))
+    session: PromptSession[str] = PromptSession(
+        history=FileHistory(history) if history else InMemoryHistory(),
+        completer=NestedCompleter.from_nested_dict(nested), complete_while_typing=False)
+    return session.prompt, PromptSession[str](history=InMemoryHistory()).prompt
+
+
+def run(args: argparse.Namespace) -> int:
+    import serial
+
+    from ..client import Client
+
+    try:
+        client = Client(args.port, timeout=args.timeout, time_scale=args.time_scale)
+    except (serial.SerialException, OSError, ValueError) as exc:
+        print(f"xac1 console: cannot open {args.port}: {exc}", file=sys.stderr)
+        return 4
+    read_line, ask = _reader(args.history)
+    print(f"xac1 console on {args.port} (9600 8N1). Type help for the commands, quit to leave.")
+    with client:
+        while True:
+            try:
+                line = read_line("xac1> ")
+            except EOFError:
+                print()
+                return 0
+            except KeyboardInterrupt:  # Ctrl-C at the prompt clears the line, as in a shell
+                continue
+            try:
+                if not _run_line(client, line, ask, args.yes):
+                    return 0
+            except KeyboardInterrupt:
+                print("interrupted (a move under way cannot be stopped over the line)")
+
+
+def _run_line(client: Client, line: str, ask: Callable[[str], str], yes: bool) -> bool:
+    """Run one console line; False when the console should end."""
+    from ..console.commands import UsageError, help_text, parse_line
+    from ..console.show import answer_lines, error_line, sent_lines
+    from ..errors import AlarmError, CommunicationHalted, ResponseTimeout, XAC1Error
+    from ..exchange import answer_or_raise
+    from ..spec import ALARM_ESTOP
+
+    try:
+        plan = parse_line(line)
+        if plan is not None and plan.local == "help":
+            print(help_text(plan.topic))
+            return True
+    except UsageError as exc:
+        print(f"error: {exc}")
+        return True
+    if plan is None:
+        return True
+    if plan.local == "quit":
+        return False
+    if plan.local == "rearm":
+        client.rearm()
+        print("rearmed: commands will be sent again")
+        return True
+    raws = [plan.raw] if plan.raw is not None else [f.to_bytes() for f in plan.frames]
+    if plan.moves and not yes:
+        try:
+            shown = " ".join(r.decode("latin-1").strip() for r in raws)
+            answer = ask(f"this moves the axis ({shown}); go ahead? [y/N] ")
+        except EOFError:
+            answer = ""
+        if answer.strip().lower() not in ("y", "yes"):
+            print("not sent")
+            return True
+    for raw in raws:
+        print("\n".join(sent_lines(raw)), flush=True)
+        try:
+            ex = client.transact(raw)
+        except (ResponseTimeout, CommunicationHalted) as exc:
+            print(error_line(exc))
+            if isinstance(exc, CommunicationHalted):
+                print("  check the equipment and the cable, then type rearm")
+            return True
+        except OSError as exc:
+            print(f"port error: {exc}")
+            return True
+        print("\n".join(answer_lines(ex)), flush=True)
+        try:
+            answer_or_raise(ex)
+        except AlarmError as exc:
+            hint = ("release the emergency stop input, then reset and home" if exc.code == ALARM_ESTOP
+                    else "type reset to clear it")
+            print(f"  ({hint})")
+            return True
+        except XAC1Error:
+            return True
+    if plan.local == "status":
+        print(f"  communication errors in a row: {client.comm_errors_in_row}"
+              f"{' (HALTED: type rearm)' if client.halted else ''}; last known position: "
+              f"{'unknown' if client.position is None else client.position}")
+    return True

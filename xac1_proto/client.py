@@ -1,0 +1,296 @@
+"""The host client: drive an XA-C1 over any pyserial port, one exchange at a time.
+
+A thin I/O shell around sans-IO parts: ``Framer`` cuts the answer out of the byte stream,
+``exchange.judge_answer`` decodes and checks it against the command, ``exchange.StormGuard`` keeps the
+host's duty to stop after communication errors in a row, and ``movewait.MoveBudget`` prices the
+timeout of a move (PROTOCOL.md "Behaviour the vendor text states").
+
+An exchange: bytes already waiting are read and reported as ``stale`` (a late answer to an earlier
+exchange must not pass for this one's); the command is written; bytes are read until the framer
+yields the first frame-shaped line, which is the answer, or until the timeout, after which late bytes
+are drained until the line is quiet. Nothing is retried behind the caller's back.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from typing import TypeVar, cast
+
+import serial
+
+from . import motion, spec
+from .codec import diagnose, show_bytes
+from .errors import CommunicationHalted, ResponseTimeout
+from .exchange import Exchange, StormGuard, answer_or_raise, judge_answer
+from .framer import FrameBytes, Framer, Junk
+from .frames import (
+    AlarmReset,
+    AlarmResetAnswer,
+    Frame,
+    MoveDirect,
+    MoveDirectAnswer,
+    MovePoint,
+    MovePointAnswer,
+    ReadCurrent,
+    ReadCurrentAnswer,
+    ReadOutputs,
+    ReadOutputsAnswer,
+    ReadPoint,
+    ReadPointAnswer,
+    ReadVersion,
+    ReadVersionAnswer,
+    StoreCurrent,
+    StoreCurrentAnswer,
+    SwitchMode,
+    SwitchModeAnswer,
+    WriteOutputs,
+    WriteOutputsAnswer,
+    WritePoint,
+    WritePointAnswer,
+)
+from .movewait import FULL_STROKE, MoveBudget
+
+TrafficHook = Callable[[str, bytes, float], None]
+A = TypeVar("A", bound=Frame)
+
+POLL_S = 0.02  # longest a single read blocks; a deadline is overshot by at most this
+
+
+def open_port(port: str | serial.Serial) -> tuple[serial.Serial, bool]:
+    """The port at 9600 8N1 and whether we opened it (a URL or device path) or were handed it."""
+    settings = dict(baudrate=spec.BAUD, bytesize=serial.EIGHTBITS, parity=serial.PARITY_NONE,
+                    stopbits=serial.STOPBITS_ONE, timeout=POLL_S)
+    if isinstance(port, str):
+        return serial.serial_for_url(port, **settings), True
+    for name, value in settings.items():
+        if getattr(port, name) != value:
+            setattr(port, name, value)
+    return port, False
+
+
+class Client:
+    """An XA-C1 host. ``port``: a pyserial URL or device path (opened at 9600 8N1) or an open
+    ``serial.Serial`` (set to 9600 8N1; left open by ``close()``).
+
+    ``timeout``: turnaround timeout in seconds for immediate commands. Moves (0MP, 0MV) wait
+    ``timeout + time_scale * estimated move time + move_margin`` (see ``movewait``); ``stroke``
+    bounds the worst case when the position or a point is unknown. ``storm_limit``: communication-error
+    answers in a row after which nothing is sent until ``rearm()`` (None: never halt).
+    ``on_traffic(direction, data, t)`` sees every byte sent ("host") and received ("device"), ``t``
+    from ``clock`` (default ``time.monotonic``). ``drain_quiet``: after a timeout, late bytes are read
+    until the line has been quiet this long.
+    """
+
+    def __init__(self, port: str | serial.Serial, *, timeout: float = 0.5,
+                 storm_limit: int | None = spec.STORM_LIMIT,
+                 speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS, move_margin: float = 2.0,
+                 on_traffic: TrafficHook | None = None, time_scale: float = 1.0,
+                 stroke: int = FULL_STROKE, drain_quiet: float = 0.05,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        if timeout <= 0 or time_scale < 0 or move_margin < 0 or drain_quiet < 0:
+            raise ValueError("timeout must be > 0; time_scale, move_margin and drain_quiet >= 0")
+        self.timeout = timeout
+        self.time_scale = time_scale
+        self.move_margin = move_margin
+        self.drain_quiet = drain_quiet
+        self.on_traffic = on_traffic
+        self.clock = clock
+        self._guard = StormGuard(storm_limit)
+        self._budget = MoveBudget(speeds, stroke)
+        self._lock = threading.RLock()
+        self._serial, self._owned = open_port(port)
+
+    # ---- state ----
+
+    @property
+    def port(self) -> serial.Serial:
+        return self._serial
+
+    @property
+    def comm_errors_in_row(self) -> int:
+        """``0%%01`` answers since the last normal answer (PROTOCOL.md host duty)."""
+        return self._guard.in_row
+
+    @property
+    def halted(self) -> bool:
+        """True once ``storm_limit`` communication errors came in a row; cleared by ``rearm()``."""
+        return self._guard.halted
+
+    @property
+    def position(self) -> int | None:
+        """The last position an answer told (None: unknown)."""
+        return self._budget.position
+
+    def rearm(self) -> None:
+        """Allow sending again after a communication-error storm (have the equipment checked first)."""
+        with self._lock:
+            self._guard.rearm()
+
+    def move_timeout(self, command: Frame) -> float:
+        """Seconds to wait for ``command``'s answer: the turnaround timeout, plus the move for 0MP/0MV."""
+        estimate = self._budget.estimate(command)
+        if estimate is None:
+            return self.timeout
+        return self.timeout + self.time_scale * estimate + self.move_margin
+
+    # ---- exchanges ----
+
+    def request(self, command: Frame, timeout: float | None = None) -> Frame:
+        """Send ``command`` and return its answer. Raises ``AlarmError`` for an alarm answer,
+        ``ProtocolError`` for an answer that breaks the protocol, ``ResponseTimeout`` on silence,
+        ``CommunicationHalted`` while halted."""
+        if command.role != spec.COMMAND:
+            raise ValueError(f"request() sends commands, got a {command.header} {command.role}")
+        return answer_or_raise(self._exchange(command.to_bytes(), command, timeout))
+
+    def transact(self, raw: bytes, timeout: float | None = None) -> Exchange:
+        """Send any bytes (even a malformed command) and return the answer as the device sent it,
+        decoded leniently with its violations. Raises only ``ResponseTimeout`` (no frame-shaped
+        answer in time) and ``CommunicationHalted``; the answers still count for the storm guard."""
+        command, _ = diagnose(raw, spec.COMMAND)
+        return self._exchange(bytes(raw), command, timeout)
+
+    def _exchange(self, raw: bytes, command: Frame | None, timeout: float | None) -> Exchange:
+        with self._lock:
+            if self._guard.halted:
+                raise CommunicationHalted(
+                    f"{self._guard.in_row} communication-error answers (0%%01) in a row: the vendor says "
+                    f"stop and have the equipment checked; call rearm() to send again")
+            if timeout is None:
+                timeout = self.move_timeout(command) if command is not None else self.timeout
+            stale = self._read_waiting()
+            self._serial.write(raw)
+            self._serial.flush()
+            t_sent = self.clock()
+            self._traffic("host", raw, t_sent)
+            answer, junk, received = self._read_answer(t_sent + timeout)
+            if answer is None:
+                self._budget.observe(command, None, clean=False)
+                late = self._drain()
+                what = f"{show_bytes(received)} (no complete frame)" if received else "nothing"
+                raise ResponseTimeout(
+                    f"no answer to {show_bytes(raw)} within {timeout:.3f} s; received {what}"
+                    + (f"; {len(late)} late byte(s) drained" if late else ""), partial=received)
+            frame, violations = judge_answer(raw, answer.raw, junk)
+            exchange = Exchange(sent=raw, raw=answer.raw, frame=frame, violations=violations,
+                                latency=None if answer.t_first is None else answer.t_first - t_sent,
+                                junk=junk, stale=stale, t_sent=t_sent)
+            clean = not exchange.errors
+            self._guard.observe(frame, clean)
+            self._budget.observe(command, frame, clean)
+            return exchange
+
+    def _traffic(self, direction: str, data: bytes, t: float) -> None:
+        if self.on_traffic is not None and data:
+            self.on_traffic(direction, data, t)
+
+    def _read_chunk(self) -> bytes:
+        data = self._serial.read(max(1, self._serial.in_waiting))
+        if data:
+            self._traffic("device", data, self.clock())
+        return data
+
+    def _read_waiting(self) -> bytes:
+        """Bytes that arrived before a command was sent (never blocks)."""
+        out = b""
+        while self._serial.in_waiting:
+            out += self._read_chunk()
+        return out
+
+    def _read_answer(self, deadline: float) -> tuple[FrameBytes | None, bytes, bytes]:
+        """(answer frame, junk, every byte received) once the first frame-shaped line is in, or
+        (None, junk, received) at the deadline."""
+        framer = Framer()
+        junk, received = b"", b""
+        while self.clock() < deadline:
+            data = self._read_chunk()
+            if not data:
+                continue
+            received += data
+            for i, event in enumerate(events := framer.feed(data, self.clock())):
+                if isinstance(event, Junk):
+                    junk += event.raw
+                    continue
+                rest = events[i + 1:] + framer.flush()  # bytes that came in the same read
+                return event, junk + b"".join(e.raw for e in rest), received
+        return None, junk, received
+
+    def _drain(self) -> bytes:
+        """Read late bytes until the line has been quiet for ``drain_quiet`` (bounded by the timeout)."""
+        out = b""
+        start = quiet_since = self.clock()
+        while self.clock() - quiet_since < self.drain_quiet and self.clock() - start < self.timeout:
+            data = self._read_chunk()
+            if data:
+                out += data
+                quiet_since = self.clock()
+        return out
+
+    # ---- one method a command (PROTOCOL.md "Frames") ----
+
+    def _ask(self, command: Frame, kind: type[A], timeout: float | None = None) -> A:
+        return cast(A, self.request(command, timeout))
+
+    def read_point(self, n: int) -> ReadPointAnswer:
+        """0RP: movement data of point ``n`` (1-F)."""
+        return self._ask(ReadPoint(n=n), ReadPointAnswer)
+
+    def write_point(self, n: int, v: int, a: int, o: int, pos: int) -> WritePointAnswer:
+        """0WP: store V, A, O and Pos as point ``n`` (1-F)."""
+        return self._ask(WritePoint(n=n, v=v, a=a, o=o, pos=pos), WritePointAnswer)
+
+    def read_current(self) -> ReadCurrentAnswer:
+        """0RC: current point and position (Pos FFFFFF before homing)."""
+        return self._ask(ReadCurrent(), ReadCurrentAnswer)
+
+    def store_current(self, n: int) -> StoreCurrentAnswer:
+        """0WC: store the current position into point ``n`` (1-F)."""
+        return self._ask(StoreCurrent(n=n), StoreCurrentAnswer)
+
+    def move_point(self, n: int, timeout: float | None = None) -> MovePointAnswer:
+        """0MP: move to point ``n`` (0 homes); answers when the move has ended."""
+        return self._ask(MovePoint(n=n), MovePointAnswer, timeout)
+
+    def home(self, timeout: float | None = None) -> MovePointAnswer:
+        """0MP 0: homing."""
+        return self.move_point(0, timeout)
+
+    def move_direct(self, vel: int, a: int, pos: int, timeout: float | None = None) -> MoveDirectAnswer:
+        """0MV: move to ``pos`` at speed number ``vel`` (1-60) with acceleration ``a`` (1-3)."""
+        return self._ask(MoveDirect(vel=vel, a=a, pos=pos), MoveDirectAnswer, timeout)
+
+    def read_outputs(self) -> ReadOutputsAnswer:
+        """0RS: the OUT ports."""
+        return self._ask(ReadOutputs(), ReadOutputsAnswer)
+
+    def write_outputs(self, o: int) -> WriteOutputsAnswer:
+        """0WS: set the OUT ports (0 none, 1 OUT1, 2 OUT2, 3 both)."""
+        return self._ask(WriteOutputs(o=o), WriteOutputsAnswer)
+
+    def read_version(self) -> ReadVersionAnswer:
+        """0RV: firmware version (``100`` = 1.00)."""
+        return self._ask(ReadVersion(), ReadVersionAnswer)
+
+    def switch_mode(self, mode: int) -> SwitchModeAnswer:
+        """0CM: 0 external start, 1 communication."""
+        return self._ask(SwitchMode(mode=mode), SwitchModeAnswer)
+
+    def reset_alarm(self) -> AlarmResetAnswer:
+        """0%C: clear every alarm but emergency stop."""
+        return self._ask(AlarmReset(), AlarmResetAnswer)
+
+    # ---- lifetime ----
+
+    def close(self) -> None:
+        """Close the port if this client opened it."""
+        with self._lock:
+            if self._owned and self._serial.is_open:
+                self._serial.close()
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
