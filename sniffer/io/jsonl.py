@@ -1,0 +1,89 @@
+"""Readers for our own JSON lines: raw recordings (``sniffer.io.recording``) and decoded output.
+
+How this works: a recording's first line is ``{"type":"recording",...}`` and each chunk line is read by
+``recording.read_recording``. Decoded output (``xac1 sniff/decode --format jsonl``) has one record a
+line: ``frame`` and ``junk`` records carry the bytes of their line (``raw``, hex) with the time of the
+first byte, so the chunks are those records in order; ``timeout`` and ``summary`` lines are skipped
+(decoding again recomputes them). Directions are stored as ``host``/``device``, so there is no side to
+choose: ``--host-is`` is not used.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from typing import Final
+
+from ..chunk import Chunk
+from .base import Source
+from .recording import is_recording, read_recording
+
+FORMAT: Final = "jsonl"
+DESCRIPTION: Final = "our JSON lines: a raw recording or decoded output"
+HOST_DEFAULT: Final = "stored in the file (host/device)"
+SUFFIXES: Final = (".jsonl", ".ndjson")
+_RECORD_TYPES: Final = ("frame", "junk", "timeout", "summary")
+
+
+def sniff(head: list[str]) -> int:
+    if head and is_recording(head[0]):
+        return 99
+    for line in head[:3]:
+        try:
+            obj = json.loads(line)
+        except ValueError:
+            return 0
+        if isinstance(obj, dict) and obj.get("type") in _RECORD_TYPES:
+            return 95
+    return 0
+
+
+def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
+    lines = src.lines()
+    first = next(lines, None)
+    if first is None:
+        src.report.problem(src.name, "empty file")
+        return
+    if is_recording(first[1]):
+        yield from _recording(src, _chain([first], lines))
+    else:
+        yield from _decoded(src, _chain([first], lines))
+
+
+def _recording(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
+    problems: list[str] = []
+    for chunk in read_recording((text for _n, text in lines), src.name, problems):
+        yield chunk
+        _move(src, problems)
+    _move(src, problems)
+
+
+def _move(src: Source, problems: list[str]) -> None:
+    """Hand ``read_recording``'s messages (``name:line: text``) to the report."""
+    for message in problems:
+        where, _, text = message.rpartition(": malformed")
+        src.report.problem(where or src.name, "malformed" + text if where else message, nlines=1)
+    problems.clear()
+
+
+def _decoded(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
+    report = src.report
+    for number, text in lines:
+        if not text.strip():
+            continue
+        try:
+            obj = json.loads(text)
+            kind = obj.get("type")
+            if kind in ("timeout", "summary"):
+                continue
+            if kind not in ("frame", "junk") or obj.get("dir") not in ("host", "device"):
+                raise ValueError(f"not a frame or junk record (type {kind!r})")
+            errors = obj.get("line_errors") or []
+            yield Chunk(obj.get("t"), obj["dir"], bytes.fromhex(obj["raw"]), errors[0] if errors else None)
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            report.problem(src.where(number), f"malformed decoded record ({exc})", nlines=1)
+
+
+def _chain(head: list[tuple[int, str]], lines: Iterator[tuple[int, str]]) -> Iterator[tuple[int, str]]:
+    yield from head
+    yield from lines

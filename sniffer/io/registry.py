@@ -1,0 +1,163 @@
+"""Format name -> reader, content sniffing, and the chunk stream of one or more capture files.
+
+How this works: each reader module names itself (``FORMAT``), says which side is the host by default
+(``HOST_DEFAULT``), gives suffix hints (``SUFFIXES``) and a ``sniff`` of the first text lines (or
+``sniff_bytes`` of the first bytes for binary formats) returning a confidence 0-100. ``detect`` scores
+every format on every file; a suffix hint adds a little. ``auto`` picks the best format when it is
+clearly ahead, else ``FormatError`` lists what it considered. ``chunks`` opens the files and merges
+their chunks by time (readers of formats with one file per direction share one ``Sides``); raw files,
+having no time, are paired by order.
+"""
+
+from __future__ import annotations
+
+import heapq
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any, Final
+
+from ..chunk import Chunk
+from . import interceptty, jpnevulator, jsonl, pcap, raw, saleae, sigrok, socat, spy
+from .base import FormatError, Report, Sides, Source, head_lines
+
+READERS: Final[dict[str, ModuleType]] = {m.FORMAT: m for m in (
+    jsonl, pcap, socat, spy, interceptty, jpnevulator, saleae, sigrok, raw)}
+NAMES: Final = tuple(READERS)
+SURE: Final = 50  # a score at least this high, clearly ahead of the next, decides alone
+SUFFIX_BONUS: Final = 10
+RAW_FALLBACK: Final = 30
+
+
+def _score(module: ModuleType, path: Path, first: bytes) -> int:
+    score = 0
+    if hasattr(module, "sniff_bytes"):
+        score = module.sniff_bytes(first)
+    elif hasattr(module, "sniff"):
+        score = module.sniff(first.decode("latin-1").splitlines()[:20])
+    if module is raw:
+        score = _raw_score(first)
+    if score and path.suffix.lower() in module.SUFFIXES:
+        score += SUFFIX_BONUS
+    elif not score and module is raw and path.suffix.lower() in module.SUFFIXES:
+        score = RAW_FALLBACK + SUFFIX_BONUS
+    return score
+
+
+def _raw_score(first: bytes) -> int:
+    """Raw XA-C1 traffic: bytes that look like frames (start with the digit 0, CR LF ends)."""
+    if not first:
+        return 0
+    lines = [line for line in first.split(b"\n") if line]
+    framey = sum(1 for line in lines if line[:1] in (b"0", b"O"))
+    return RAW_FALLBACK if framey and framey * 3 >= len(lines) * 2 else 0
+
+
+@dataclass(frozen=True)
+class Detection:
+    name: str
+    considered: tuple[tuple[str, int], ...]  # every format with a non-zero score, best first
+
+
+def detect(paths: list[str]) -> Detection:
+    """The format of these files, or FormatError naming the formats considered."""
+    totals: dict[str, list[int]] = {name: [] for name in NAMES}
+    for p in paths:
+        path = Path(p)
+        with open(path, "rb") as f:
+            first = f.read(8192)
+        if not first:
+            raise FormatError(f"{p}: the file is empty")
+        for name, module in READERS.items():
+            totals[name].append(_score(module, path, first))
+    ranked = sorted(((name, min(scores)) for name, scores in totals.items()), key=lambda x: -x[1])
+    considered = tuple((n, s) for n, s in ranked if s > 0)
+    best = considered[0] if considered else None
+    runner_up = considered[1][1] if len(considered) > 1 else 0
+    alone = best is not None and len(considered) == 1 and best[0] == "raw"  # only raw fits: take it
+    if not alone and (best is None or best[1] < SURE or best[1] - runner_up < 10):
+        listed = ", ".join(f"{n} ({s})" for n, s in considered) or "none matched"
+        different = ""
+        if len(paths) > 1:
+            per_file = [max(NAMES, key=lambda n, i=i: totals[n][i]) for i in range(len(paths))]
+            if len(set(per_file)) > 1:
+                different = " (the files look like different formats: " + ", ".join(
+                    f"{p}: {n}" for p, n in zip(paths, per_file, strict=True)) + ")"
+        raise FormatError(f"cannot tell the capture format{different}; considered: {listed}. "
+                          f"Give --input-format, one of: {', '.join(NAMES)}")
+    return Detection(best[0], considered)
+
+
+class Capture:
+    """The chunks of one or more files of one format, with their sources (for progress) and report."""
+
+    def __init__(self, paths: list[str], fmt: str, host_is: str | None = None,
+                 samplerate: float | None = None, report: Report | None = None) -> None:
+        if fmt not in READERS:
+            raise FormatError(f"unknown input format {fmt!r}; one of: {', '.join(NAMES)}")
+        self.format = fmt
+        self.module = READERS[fmt]
+        self.report = report or Report()
+        self.sources = [Source(p, self.report) for p in paths]
+        self.host_is = host_is
+        self.samplerate = samplerate
+        if samplerate is not None and fmt != "sigrok":
+            self.report.note(f"--samplerate applies to sigrok annotations only; ignored for {fmt}")
+
+    @property
+    def size(self) -> int:
+        return sum(s.size for s in self.sources)
+
+    @property
+    def pos(self) -> int:
+        return sum(s.pos for s in self.sources)
+
+    def _one(self, src: Source, sides: Sides | None) -> Iterator[Chunk]:
+        kwargs: dict[str, Any] = {}
+        if self.module is sigrok:
+            kwargs["samplerate"] = self.samplerate
+        if self.module is saleae:
+            kwargs.update(sides=sides, multi_file=len(self.sources) > 1)
+        return self.module.read(src, self.host_is, **kwargs)
+
+    def __iter__(self) -> Iterator[Chunk]:
+        if self.module is raw:
+            yield from raw.read_files(self.sources, self.host_is)
+            return
+        sides = Sides(self.format, self.host_is) if getattr(self.module, "MULTI_FILE", False) else None
+        streams = [self._one(src, sides) for src in self.sources]
+        if len(streams) == 1:
+            yield from streams[0]
+        else:
+            yield from heapq.merge(*streams, key=_time_key)
+        if sides is not None:
+            sides.check(self.report, ", ".join(s.name for s in self.sources))
+
+    def close(self) -> None:
+        for s in self.sources:
+            s.close()
+
+    def __enter__(self) -> Capture:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _time_key(chunk: Chunk) -> float:
+    return chunk.t if chunk.t is not None else float("-inf")
+
+
+def describe() -> list[tuple[str, str, str]]:
+    """(format, what it reads, default host side) for help texts."""
+    return [(m.FORMAT, m.DESCRIPTION, m.HOST_DEFAULT) for m in READERS.values()]
+
+
+def is_readable(path: str) -> bool:
+    return os.path.isfile(path) and os.access(path, os.R_OK)
+
+
+__all__ = ["READERS", "NAMES", "Capture", "Detection", "FormatError", "Report", "detect", "describe",
+           "head_lines", "is_readable"]

@@ -1,0 +1,126 @@
+"""Reader for Saleae Logic async serial exports (CSV).
+
+How this works: two layouts are read.
+- Logic 1.x analyzer export, one file per line direction: header ``Time [s],Value,Parity Error,Framing
+  Error``, then one row per byte: ``0.001052,0x30,,`` (hex radix) or ``0.001052,'0',,`` / ``0``
+  (ASCII radix; ``\\r``, ``\\n``, ``\\t``, ``\\xNN``, ``[CR]``-style names and ``COMMA``/``SPACE`` are
+  read too). A non-empty error column marks the byte (Chunk.error).
+- Logic 2 data table export: header ``name,type,start_time,duration,data`` (any further columns; one
+  whose name contains ``error`` marks the byte), one row per frame of an analyzer: ``"Async
+  Serial","data",0.001052,0.00104,0x30``. Rows of other types with an error word (``framing error``)
+  mark the last byte; other row types are skipped.
+Times are seconds from the start of the capture.
+
+Sides: the analyzer export names a side by its file; the data table by the analyzer's ``name`` (the
+file when several files are given). Host side default: a file or analyzer whose name says ``host``
+(``device`` marks the other), else the first file given (the first analyzer in the table).
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from collections.abc import Iterator
+from typing import Final
+
+from ..chunk import Chunk
+from .base import Sides, Source
+
+FORMAT: Final = "saleae"
+DESCRIPTION: Final = "Saleae Logic async serial export (analyzer CSV or Logic 2 data table)"
+HOST_DEFAULT: Final = "the file/analyzer named host, else the first file given"
+SUFFIXES: Final = (".csv",)
+MULTI_FILE: Final = True  # one file per direction, merged by time
+
+_ANALYZER: Final = ("time [s]", "value")
+_TABLE: Final = ("name", "type", "start_time")
+_ESC: Final = {"\\r": 0x0D, "\\n": 0x0A, "\\t": 0x09, "\\0": 0x00, "\\\\": 0x5C, "COMMA": 0x2C,
+               "SPACE": 0x20, "' '": 0x20, "[CR]": 0x0D, "[LF]": 0x0A, "[TAB]": 0x09, "[NUL]": 0x00}
+
+
+def sniff(head: list[str]) -> int:
+    if not head:
+        return 0
+    first = [c.strip().strip('"').lower() for c in head[0].split(",")]
+    if tuple(first[:2]) == _ANALYZER or tuple(first[:3]) == _TABLE:
+        return 95
+    return 0
+
+
+def value_byte(text: str) -> int | None:
+    """A byte in any radix Saleae exports: ``0x30``, ``'0'``, ``0``, ``\\r``, ``0b00110000``."""
+    text = text.strip()
+    if len(text) >= 3 and text[0] == text[-1] == "'":
+        text = text[1:-1]
+    if text in _ESC:
+        return _ESC[text]
+    if re.fullmatch(r"0x[0-9A-Fa-f]{1,2}", text):
+        return int(text, 16)
+    if re.fullmatch(r"\\x[0-9A-Fa-f]{2}", text):
+        return int(text[2:], 16)
+    if re.fullmatch(r"0b[01]{1,8}", text):
+        return int(text, 2)
+    if len(text) == 1:
+        return ord(text) & 0xFF
+    return None
+
+
+def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
+         multi_file: bool = False) -> Iterator[Chunk]:
+    own = sides is None
+    sides = sides or Sides(FORMAT, host_is)
+    report = src.report
+    lines = src.lines()
+    try:
+        number, header_line = next(lines)
+    except StopIteration:
+        report.problem(src.name, "empty file")
+        return
+    header = [c.strip().lower() for c in next(csv.reader([header_line]))]
+    if tuple(header[:2]) == _ANALYZER:
+        table = False
+    elif tuple(header[:3]) == _TABLE:
+        table = True
+    else:
+        report.problem(src.where(number), f"not a Saleae header: {header_line[:60]!r}", nlines=1)
+        return
+    error_cols = [i for i, c in enumerate(header) if "error" in c]
+    time_col = 2 if table else 0
+    data_col = header.index("data") if table and "data" in header else (None if table else 1)
+    held: Chunk | None = None
+    for number, line in lines:
+        if not line.strip():
+            continue
+        try:
+            row = next(csv.reader([line]))
+            t = float(row[time_col])
+        except (ValueError, IndexError, StopIteration):
+            report.problem(src.where(number), f"not a Saleae row: {line[:60]!r}", nlines=1)
+            continue
+        key = src.name if (not table or multi_file) else row[0]
+        d = sides.direction(key)
+        if d is None:
+            report.problem(src.where(number), f"a third side {key!r}; its rows are skipped", nlines=1)
+            continue
+        error = next((f"{header[i]}: {row[i].strip()}" for i in error_cols
+                      if i < len(row) and row[i].strip()), None)
+        if table and row[1].strip().lower() != "data":
+            word = " ".join(row[1:]).lower()
+            if "error" in word:
+                mark = error or row[1].strip()
+                if held is not None and held.dir == d:
+                    held = Chunk(held.t, d, held.data, mark)
+                else:
+                    yield Chunk(t, d, b"", mark)
+            continue
+        value = value_byte(row[data_col]) if data_col is not None and data_col < len(row) else None
+        if value is None:
+            report.problem(src.where(number), f"cannot read the byte value in {line[:60]!r}", nlines=1)
+            continue
+        if held is not None:
+            yield held
+        held = Chunk(t, d, bytes([value]), error)
+    if held is not None:
+        yield held
+    if own:
+        sides.check(report, src.name)

@@ -1,0 +1,199 @@
+"""Reader for sigrok-cli UART decoder annotations (``-P uart:... -A uart=rx-data``).
+
+How this works: each line is one annotation, ``[START-END ]INSTANCE: [CLASS: ]TEXT``: sample numbers
+with ``--protocol-decoder-samplenum``, the decoder instance (``uart-1``, ``uart-2``: one per ``-P``),
+the class with ``--protocol-decoder-ann-class`` (``rx-data``, ``tx-data``, ``rx-frame-err``...), then
+the annotation text, quoted in some sigrok-cli versions. Data bytes are hex (``30``, the decoder's
+default ``format=hex``) or ASCII (``format=ascii``: ``0``, ``[0D]``). A ``Frame error`` or
+``Parity error`` annotation marks the last byte of that side as damaged on the wire (Chunk.error).
+Sample numbers become seconds with ``--samplerate HZ``; without it the bytes have no time.
+
+Sides: with two or more decoder instances each instance is a line, the host being ``uart-1`` by
+default. With one instance the annotation class tells the lines apart, the host being ``tx-data`` by
+default (``-A uart=rx-data:tx-data`` with ``--protocol-decoder-ann-class``). ``--host-is`` takes an
+instance (``uart-2``) or a class (``rx-data``).
+"""
+
+from __future__ import annotations
+
+import heapq
+import re
+import statistics
+from collections.abc import Iterator
+from itertools import islice
+from typing import Final
+
+from xac1_proto import spec
+
+from ..chunk import DEVICE, HOST, Chunk, Direction
+from .base import FormatError, Source
+
+FORMAT: Final = "sigrok"
+DESCRIPTION: Final = "sigrok-cli UART annotations (-A uart=rx-data)"
+HOST_DEFAULT: Final = "uart-1 (two instances) or tx-data (one instance)"
+SUFFIXES: Final = (".sigrok",)
+
+_LINE: Final = re.compile(r"(?:(\d+)-(\d+) )?([A-Za-z][\w.]*-\d+): (?:([a-z][a-z0-9-]*): )?(.*)")
+_ERRORS: Final = {"frame error": "UART framing error", "parity error": "UART parity error"}
+_DATA_BITS: Final = spec.BITS_PER_BYTE - 2  # 8N1 less start and stop bits
+_PRESCAN: Final = 2000  # lines looked at to learn the instances and classes
+
+
+def sniff(head: list[str]) -> int:
+    rows = [line for line in head if line.strip()]
+    good = [r for r in rows if _LINE.fullmatch(r)]
+    return 80 if good and len(good) >= max(1, len(rows) * 2 // 3) else 0
+
+
+def _byte(text: str) -> int | None:
+    """The data byte an annotation text shows (hex, or ASCII with [XX] escapes), else None."""
+    text = text.strip()
+    if len(text) >= 2 and text[0] == text[-1] == '"':
+        text = text[1:-1]
+    if re.fullmatch(r"[0-9A-Fa-f]{2}", text):
+        return int(text, 16)
+    if re.fullmatch(r"\[[0-9A-Fa-f]{2}\]", text):
+        return int(text[1:3], 16)
+    if len(text) == 1:
+        return ord(text) & 0xFF
+    return None
+
+
+def _first_text(rest: str) -> str:
+    """The first (longest) annotation string: ``"30" "30"`` -> ``30``."""
+    rest = rest.strip()
+    if rest.startswith('"'):
+        end = rest.find('"', 1)
+        return rest[: end + 1] if end > 0 else rest
+    return rest
+
+
+def read(src: Source, host_is: str | None = None, samplerate: float | None = None) -> Iterator[Chunk]:
+    report = src.report
+    if samplerate is not None and samplerate <= 0:
+        raise FormatError(f"--samplerate {samplerate}: must be a positive rate in Hz")
+    instances, classes, inferred = _prescan(src)
+    if samplerate is None and inferred is not None:
+        samplerate = inferred
+        report.note(f"{src.name}: no --samplerate given; {inferred:g} Hz inferred from the byte lengths "
+                    f"at the spec's {spec.BAUD} baud")
+    if host_is is not None and host_is not in instances | classes | {"tx-data", "rx-data"}:
+        report.problem(src.name, f"--host-is {host_is!r} matches no decoder instance or class of this "
+                                 f"file (instances: {', '.join(sorted(instances)) or 'none'}; classes: "
+                                 f"{', '.join(sorted(classes)) or 'not shown'})")
+    if len(instances) > 1 and samplerate is not None:
+        # sigrok-cli prints each decoder instance's annotations block by block, not in time order
+        # across instances: read the file once per instance and merge by time (constant memory).
+        first, *others = sorted(instances, key=_instance_number)
+        passes = [_pass(src, src.lines(), host_is, samplerate, instances, classes, only=first,
+                        report_all=True)]
+        passes += [_pass(src, _extra_lines(src), host_is, samplerate, instances, classes, only=other)
+                   for other in others]
+        yield from heapq.merge(*passes, key=lambda c: c.t if c.t is not None else -1.0)
+    else:
+        yield from _pass(src, src.lines(), host_is, samplerate, instances, classes, only=None,
+                         report_all=True)
+
+
+def _extra_lines(src: Source) -> Iterator[tuple[int, str]]:
+    with open(src.path, "rb") as f:
+        for number, raw in enumerate(f, 1):
+            yield number, raw.decode("latin-1").rstrip("\r\n")
+
+
+def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, samplerate: float | None,
+          instances: set[str], classes: set[str], only: str | None,
+          report_all: bool = False) -> Iterator[Chunk]:
+    """The chunks of one reading of the file (of one decoder instance when ``only`` is given)."""
+    report = src.report
+    by_instance = len(instances) > 1
+
+    def direction(instance: str, cls: str | None) -> Direction | None:
+        if by_instance:
+            key, default = instance, min(instances, key=_instance_number)
+        else:
+            key, default = (cls or "rx-data").replace("-err", "").replace("-frame", "-data") \
+                .replace("-parity", "-data"), "tx-data"
+            key = "tx-data" if key.startswith("tx") else "rx-data"
+        if host_is is not None:
+            return HOST if host_is in (instance, key, cls) else DEVICE
+        return HOST if key == default else DEVICE
+
+    saw_samples = False
+    last_byte: dict[Direction, Chunk] = {}
+    for number, line in lines:
+        if not line.strip():
+            continue
+        m = _LINE.fullmatch(line)
+        if not m:
+            if report_all:
+                report.problem(src.where(number), f"not a sigrok-cli annotation line: {line[:60]!r}",
+                               nlines=1)
+            continue
+        start, _end, instance, cls, rest = m.groups()
+        if only is not None and instance != only and (instance in instances or not report_all):
+            continue
+        d = direction(instance, cls)
+        if d is None:
+            continue
+        text = _first_text(rest)
+        error = _ERRORS.get(text.strip('"').lower())
+        if error is not None or (cls or "").endswith("-err"):
+            prev = last_byte.pop(d, None)
+            if prev is not None:
+                yield Chunk(prev.t, d, prev.data, error or f"UART {cls}")
+            else:
+                yield Chunk(None, d, b"", error or f"UART {cls}")
+            continue
+        if cls is not None and not cls.endswith("-data"):
+            continue  # start/stop bits, warnings: not data
+        value = _byte(text)
+        if value is None:
+            if not report_all:
+                continue
+            report.problem(src.where(number), f"annotation {text!r} is not a data byte (show only the "
+                                              f"data class: -A uart=rx-data)", nlines=1)
+            continue
+        t = None
+        if start is not None:
+            saw_samples = True
+            if samplerate is not None:
+                t = int(start) / samplerate
+        prev = last_byte.pop(d, None)
+        if prev is not None:
+            yield prev
+        # hold each byte back one step so a following error annotation can mark it
+        last_byte[d] = Chunk(t, d, bytes([value]))
+        for other in [k for k in last_byte if k != d]:
+            yield last_byte.pop(other)
+    yield from last_byte.values()
+    if saw_samples and samplerate is None and report_all:
+        report.note(f"{src.name}: sample numbers present but no --samplerate given: bytes have no time, "
+                    f"so timing checks (no-answer) are skipped")
+
+
+def _instance_number(name: str) -> int:
+    return int(name.rsplit("-", 1)[1])
+
+
+def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
+    """Instances, classes and (from data bytes' sample spans) the sample rate implied by the spec's baud
+    rate, from the first lines (read separately, so streaming is not disturbed)."""
+    instances: set[str] = set()
+    classes: set[str] = set()
+    spans: list[int] = []
+    with open(src.path, "rb") as f:
+        for raw in islice(f, _PRESCAN):
+            m = _LINE.fullmatch(raw.decode("latin-1").rstrip("\r\n"))
+            if m:
+                instances.add(m.group(3))
+                if m.group(4):
+                    classes.add(m.group(4))
+                if m.group(1) is not None and (m.group(4) or "-data").endswith("-data") and \
+                        _byte(_first_text(m.group(5))) is not None:
+                    spans.append(int(m.group(2)) - int(m.group(1)))
+    rate = None
+    if spans:
+        # a data annotation spans the 8 data bits
+        rate = round(statistics.median(spans) / _DATA_BITS * spec.BAUD)
+    return instances, classes, rate or None

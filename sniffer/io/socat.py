@@ -1,0 +1,166 @@
+"""Reader for socat's ``-x``, ``-v`` and ``-x -v`` traffic dumps (written on stderr).
+
+How this works: each transfer starts with a header ``> 2024/05/01 10:00:00.123456  length=6 from=0
+to=5`` (``>``: data from socat's first address to its second, ``<``: back). Then the data, as one of:
+- ``-x``: one line of hex bytes `` 30 52 56 0d 0a``;
+- ``-x -v``: hex lines of up to 16 bytes with an ASCII column, split after each LF, ending with ``--``;
+- ``-v``: the bytes as text (``\\r``, ``\\\\``, ``\\a\\b\\v\\f`` escaped, LF as a line end, other
+  unprintable bytes as ``.``), not ended by a newline, so the next header may follow on the same line.
+  ``length=`` says where the text ends. ``.`` stands for any unprintable byte, so ``-v`` alone is lossy.
+Some socat releases (1.7.x) print the fraction of a second as nine digits of which the first three are
+``000`` and the last six the microseconds (``08.000428215`` is 08.428215 s); a file whose fractions all
+start with ``000`` is read that way, the first other nine-digit fraction switches to nanoseconds.
+socat's own diagnostics (``2024/05/01 10:00:00 socat[123] N ...``) are skipped.
+
+Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from typing import Final
+
+from ..chunk import Chunk
+from .base import Sides, Source, wallclock
+
+FORMAT: Final = "socat"
+DESCRIPTION: Final = "socat -x / -v / -x -v dump"
+HOST_DEFAULT: Final = ">"
+SUFFIXES: Final = (".socat",)
+
+_HEADER: Final = re.compile(
+    r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?length=(\d+) from=(\d+) to=(\d+)")
+_DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
+_HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
+_ESCAPES: Final = {"r": 0x0D, "n": 0x0A, "\\": 0x5C, "a": 0x07, "b": 0x08, "v": 0x0B, "f": 0x0C,
+                   "t": 0x09, "e": 0x1B}
+
+
+def sniff(head: list[str]) -> int:
+    """Confidence 0-100 that these first lines are a socat dump."""
+    hits = sum(1 for line in head if _HEADER.match(line))
+    return 90 if hits else (20 if any(_DIAG.match(line) for line in head) else 0)
+
+
+class _Clock:
+    """Turns a header's date, time and fraction into unix seconds, handling the 9-digit quirk."""
+
+    def __init__(self) -> None:
+        self.nanoseconds = False
+
+    def __call__(self, date: str | None, clock: str | None, frac: str | None) -> float | None:
+        if date is None or clock is None:
+            return None
+        frac = frac or ""
+        if len(frac) == 9 and not self.nanoseconds:
+            if frac.startswith("000"):
+                frac = frac[3:]
+            else:
+                self.nanoseconds = True
+        return wallclock(date, f"{clock}.{frac}" if frac else clock)
+
+
+def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
+    sides = Sides(FORMAT, host_is, (">", "<"))
+    clock = _Clock()
+    report = src.report
+    # the transfer being read: (line, direction, t, length, data, mode "hex"/"text"/None)
+    cur: dict | None = None
+    text_bytes = 0
+
+    def finish(line: int) -> Chunk | None:
+        nonlocal cur
+        rec, cur = cur, None
+        if rec is None:
+            return None
+        data = bytes(rec["data"])
+        if len(data) != rec["length"]:
+            report.problem(src.where(rec["line"]),
+                           f"transfer says length={rec['length']} but its dump holds {len(data)} "
+                           f"byte(s) (cut short before line {line})",
+                           nbytes=max(0, rec["length"] - len(data)))
+        return Chunk(rec["t"], rec["dir"], data) if data else None
+
+    for number, line in src.lines():
+        rest: str | None = line
+        while rest is not None:
+            text, rest = rest, None
+            if cur is not None and cur["mode"] == "text" and len(cur["data"]) < cur["length"]:
+                if _HEADER.match(text) and not cur["data"]:
+                    pass  # an empty-looking transfer: fall through to the header
+                else:
+                    consumed, cut = _take_text(text, cur, report, src.where(number))
+                    text_bytes += consumed
+                    if len(cur["data"]) < cur["length"]:
+                        cur["data"].append(0x0A)  # the line end was an LF byte
+                        if len(cur["data"]) == cur["length"]:
+                            chunk = finish(number)
+                            if chunk:
+                                yield chunk
+                        break
+                    chunk = finish(number)
+                    if chunk:
+                        yield chunk
+                    rest = text[cut:] or None
+                    continue
+            m = _HEADER.match(text)
+            if m:
+                chunk = finish(number)
+                if chunk:
+                    yield chunk
+                d = sides.direction(m.group(1))
+                assert d is not None
+                cur = {"line": number, "dir": d, "t": clock(m.group(2), m.group(3), m.group(4)),
+                       "length": int(m.group(5)), "data": bytearray(), "mode": None}
+                tail = text[m.end():].strip()
+                if tail:
+                    report.problem(src.where(number), f"unexpected text after the header: {tail!r}")
+                continue
+            if text.strip() == "--" or _DIAG.match(text):
+                if text.strip() == "--" or cur is None or cur["mode"] != "text":
+                    chunk = finish(number)
+                    if chunk:
+                        yield chunk
+                continue
+            if not text.strip():
+                if cur is not None and cur["mode"] is None:
+                    cur["mode"] = "text"
+                    rest = text
+                continue
+            if cur is None:
+                report.problem(src.where(number), f"not a socat header, data or log line: {text[:60]!r}",
+                               nlines=1)
+                continue
+            hm = _HEX.fullmatch(text)
+            if cur["mode"] in (None, "hex") and hm:
+                cur["mode"] = "hex"
+                cur["data"].extend(bytes.fromhex(hm.group(1)))
+                continue
+            if cur["mode"] is None:
+                cur["mode"] = "text"
+                rest = text
+                continue
+            report.problem(src.where(number), f"cannot read this dump line: {text[:60]!r}", nlines=1)
+    chunk = finish(number if "number" in locals() else 0)
+    if chunk:
+        yield chunk
+    if text_bytes:
+        report.note(f"{src.name}: socat -v text dump: an unprintable byte shows as '.', so a '.' may "
+                    f"stand for another byte (use socat -x -v for exact bytes)")
+
+
+def _take_text(text: str, rec: dict, report: object, where: str) -> tuple[int, int]:
+    """Decode -v text into ``rec['data']`` until its length is reached; returns (bytes, chars used)."""
+    data: bytearray = rec["data"]
+    i = 0
+    start = len(data)
+    while i < len(text) and len(data) < rec["length"]:
+        c = text[i]
+        if c == "\\" and i + 1 < len(text) and text[i + 1] in _ESCAPES:
+            data.append(_ESCAPES[text[i + 1]])
+            i += 2
+            continue
+        data.append(ord(c) & 0xFF)
+        i += 1
+    return len(data) - start, i

@@ -1,0 +1,149 @@
+"""The live shell shared by ``xac1 sniff`` and ``xac1 proxy``: clock, analyzer, view and recording.
+
+``Clock`` reads the monotonic clock and maps it to wall time once, so timestamps never jump when the
+system clock is set. ``Session`` takes each chunk as it is seen: writes it to the recording first (so a
+crash loses nothing), feeds the analyzer and prints the records; ``close()`` flushes, prints the
+summary and closes the recording. ``sniff`` is the tap loop: ``select`` over the two receive-only taps,
+chunks put back in cause-and-effect order (``order.CausalOrder``: two taps deliver with
+different delays), a tick every ``TICK_S`` for missed answers, and a clear message when a tap goes away (with
+``reconnect``: retried every ``RETRY_S`` while the other tap goes on).
+"""
+
+from __future__ import annotations
+
+import select
+import threading
+import time
+from collections.abc import Callable
+from typing import IO
+
+from .analyzer import Analyzer
+from .chunk import Chunk, Direction
+from .io.recording import RecordingWriter
+from .order import CausalOrder
+from .records import Record
+from .taps import PortGone, ReadOnlyPort
+from .view import View
+
+TICK_S = 0.05
+RETRY_S = 0.5
+
+
+class Clock:
+    """Unix seconds from the monotonic clock, mapped to wall time once at creation."""
+
+    def __init__(self) -> None:
+        self._wall0 = time.time()
+        self._mono0 = time.monotonic()
+
+    def now(self) -> float:
+        return self._wall0 + (time.monotonic() - self._mono0)
+
+
+class Session:
+    """Recording, analyzer and view for one run; see the module docstring."""
+
+    def __init__(self, analyzer: Analyzer, view: View, recorder: RecordingWriter | None = None,
+                 on_record: Callable[[Record], None] | None = None) -> None:
+        self.analyzer = analyzer
+        self.view = view
+        self.recorder = recorder
+        self.on_record = on_record
+        self.closed = False
+
+    def _out(self, records: list[Record]) -> None:
+        for r in records:
+            self.view.write(r)
+            if self.on_record is not None:
+                self.on_record(r)
+
+    def chunk(self, chunk: Chunk) -> None:
+        if self.recorder is not None:
+            self.recorder.write(chunk)
+        self._out(self.analyzer.feed(chunk))
+
+    def tick(self, now: float) -> None:
+        self._out(self.analyzer.tick(now))
+
+    def close(self, now: float | None, summary: bool = True) -> None:
+        """Flush the analyzer, print the summary (unless ``summary`` is False), close the recording."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._out(self.analyzer.close(now))
+            if summary:
+                self.view.summary(self.analyzer.summary())
+        finally:
+            if self.recorder is not None:
+                self.recorder.close()
+
+
+def _open(path: str, name: str, baud: int) -> ReadOnlyPort:
+    return ReadOnlyPort(path, name, baud)
+
+
+def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: int = 9600,
+          reconnect: bool = False, stop: threading.Event | None = None,
+          started: threading.Event | None = None, err: IO[str] | None = None) -> int:
+    """Read both taps until ``stop`` (or Ctrl-C in the caller); 0, or 1 when a tap went away for good.
+    Never writes to a tap. The caller closes the session."""
+    stop = stop or threading.Event()
+    ports: dict[Direction, ReadOnlyPort | None] = {}
+    retry_at: dict[Direction, float] = {}
+
+    def say(text: str) -> None:
+        if err is not None:
+            err.write(text + "\n")
+            err.flush()
+
+    for d, path in paths.items():
+        try:
+            ports[d] = _open(path, d, baud)
+        except PortGone:  # at start: the caller reports it
+            for port in ports.values():
+                if port is not None:
+                    port.close()
+            raise
+    order = CausalOrder(session.chunk, lambda: session.analyzer.waiting,
+                        lambda: session.analyzer.expecting_answer)
+    if started is not None:
+        started.set()
+    try:
+        while not stop.is_set():
+            for d, port in ports.items():
+                if port is None and time.monotonic() >= retry_at[d]:
+                    try:
+                        ports[d] = _open(paths[d], d, baud)
+                        say(f"{d} tap {paths[d]}: back, resuming")
+                    except PortGone:
+                        retry_at[d] = time.monotonic() + RETRY_S
+            live = {p.fileno(): (d, p) for d, p in ports.items() if p is not None}
+            ready = select.select(list(live), [], [], TICK_S)[0] if live else (time.sleep(TICK_S) or [])
+            got: list[tuple[Direction, bytes]] = []
+            for fd in ready:
+                d, port = live[fd]
+                try:
+                    data = port.read()
+                except PortGone as exc:
+                    port.close()
+                    say(f"error: {exc}; everything seen so far is kept"
+                        + (f"; waiting for it to come back (every {RETRY_S} s)" if reconnect else ""))
+                    if not reconnect:
+                        return 1
+                    ports[d] = None
+                    retry_at[d] = time.monotonic() + RETRY_S
+                    continue
+                if data:
+                    got.append((d, data))
+            now = clock.now()
+            for d, data in got:
+                order.push(Chunk(now, d, data), time.monotonic())
+            order.due(time.monotonic())
+            session.tick(clock.now())
+        return 0
+    finally:
+        order.flush()
+        for port in ports.values():
+            if port is not None:
+                port.close()

@@ -1,0 +1,197 @@
+"""What the analyzer reports: one record per frame, per junk run and per missed answer, then a summary.
+
+The records serialise to the pinned JSON lines schema (README "Sniffer"): ``FrameRecord`` ->
+``{"type":"frame",...}``, ``JunkRecord`` -> ``{"type":"junk",...}``, ``TimeoutRecord`` ->
+``{"type":"timeout",...}`` (the one violation that no frame carries: ``no-answer``), and the ``Tally``
+that counts them gives the last line, ``{"type":"summary",...}``. Records are inert data; the analyzer
+builds them and the views print them.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+from xac1_proto import Frame, spec
+
+from .chunk import Direction
+
+
+def _round_t(t: float | None) -> float | None:
+    return None if t is None else round(t, 6)
+
+
+def _ms(seconds: float | None) -> float | None:
+    return None if seconds is None else round(seconds * 1000.0, 3)
+
+
+@dataclass(frozen=True)
+class FrameRecord:
+    """A frame seen on one line. ``i``: position among frame and junk records; ``t``: time of its first
+    byte; ``header``: the spec header it was read as (a letter O read as the digit), None when unknown;
+    ``frame``: the lenient decode (None when a field could not be read); ``violations``: codes, each once;
+    ``details``: one human sentence per violation; ``reply_to``/``latency_ms``: on device frames, the
+    command answered and the time from its last byte to this frame's first byte."""
+
+    i: int
+    t: float | None
+    dir: Direction
+    raw: bytes
+    header: str | None
+    frame: Frame | None
+    violations: tuple[str, ...] = ()
+    details: tuple[str, ...] = ()
+    reply_to: int | None = None
+    latency_s: float | None = None
+    t_last: float | None = None
+    line_errors: tuple[str, ...] = ()
+
+    type = "frame"
+
+    @property
+    def fields(self) -> dict[str, Any] | None:
+        return None if self.frame is None else self.frame.fields()
+
+    @property
+    def latency_ms(self) -> float | None:
+        return _ms(self.latency_s)
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"type": "frame", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
+                               "raw": self.raw.hex(), "header": self.header, "fields": self.fields,
+                               "violations": list(self.violations)}
+        if self.dir == "device":
+            out["reply_to"] = self.reply_to
+            out["latency_ms"] = self.latency_ms
+        if self.details:
+            out["details"] = list(self.details)
+        if self.line_errors:
+            out["line_errors"] = list(self.line_errors)
+        return out
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), separators=(",", ":"))
+
+
+@dataclass(frozen=True)
+class JunkRecord:
+    """Bytes that form no frame (always the ``garbage`` violation). ``reason`` is the framer's:
+    ``no-frame-start``, ``truncated``, ``overflow``, ``flushed``."""
+
+    i: int
+    t: float | None
+    dir: Direction
+    raw: bytes
+    reason: str
+    violations: tuple[str, ...] = ("garbage",)
+    details: tuple[str, ...] = ()
+    line_errors: tuple[str, ...] = ()
+
+    type = "junk"
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"type": "junk", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
+                               "raw": self.raw.hex(), "violations": list(self.violations),
+                               "reason": self.reason}
+        if self.details:
+            out["details"] = list(self.details)
+        if self.line_errors:
+            out["line_errors"] = list(self.line_errors)
+        return out
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), separators=(",", ":"))
+
+
+@dataclass(frozen=True)
+class TimeoutRecord:
+    """A command that got no answer in time (``no-answer``), reported when its deadline passed.
+    ``command``: the command's ``i``; ``t``: the deadline (None when the source has no time and the
+    verdict came at the end of the data); ``waited_s``: the timeout applied (None without time)."""
+
+    command: int
+    t: float | None
+    header: str | None
+    waited_s: float | None
+    details: tuple[str, ...] = ()
+    violations: tuple[str, ...] = ("no-answer",)
+    dir: Direction = "host"
+
+    type = "timeout"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"type": "timeout", "t": _round_t(self.t), "dir": self.dir, "command": self.command,
+                "header": self.header, "waited_ms": _ms(self.waited_s),
+                "violations": list(self.violations), "details": list(self.details)}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), separators=(",", ":"))
+
+
+Record = FrameRecord | JunkRecord | TimeoutRecord
+
+
+@dataclass
+class Tally:
+    """Counts records as they go by; ``summary()`` is the schema's last line."""
+
+    frames: Counter[str] = field(default_factory=Counter)  # by direction
+    junk: int = 0
+    bytes: Counter[str] = field(default_factory=Counter)  # by direction, frames and junk
+    violations: Counter[str] = field(default_factory=Counter)
+    commands: Counter[str] = field(default_factory=Counter)  # host frames by header ("?" unknown)
+    answers: Counter[str] = field(default_factory=Counter)  # device frames by header
+    latencies: dict[str, list[float]] = field(default_factory=dict)  # command header -> seconds
+    line_errors: int = 0  # frame and junk records carrying a line error
+    unanswered: int = 0  # commands still waiting at the end with no verdict (capture cut short)
+    _headers: dict[int, str] = field(default_factory=dict)  # host frame i -> header
+
+    def add(self, record: Record) -> None:
+        self.violations.update(record.violations)
+        if isinstance(record, FrameRecord):
+            self.frames[record.dir] += 1
+            self.bytes[record.dir] += len(record.raw)
+            header = record.header or "?"
+            self.line_errors += bool(record.line_errors)
+            if record.dir == "host":
+                self.commands[header] += 1
+                self._headers[record.i] = header
+            else:
+                self.answers[header] += 1
+                if record.reply_to is not None and record.latency_s is not None:
+                    command = self._headers.get(record.reply_to, "?")
+                    self.latencies.setdefault(command, []).append(record.latency_s)
+        elif isinstance(record, JunkRecord):
+            self.junk += 1
+            self.bytes[record.dir] += len(record.raw)
+            self.line_errors += bool(record.line_errors)
+
+    def latency_stats(self) -> dict[str, dict[str, float | int]]:
+        """Per command header: count, min, median, max latency in ms."""
+        out: dict[str, dict[str, float | int]] = {}
+        for header in sorted(self.latencies):
+            values = self.latencies[header]
+            out[header] = {"n": len(values), "min": _ms(min(values)) or 0.0,
+                           "median": _ms(statistics.median(values)) or 0.0, "max": _ms(max(values)) or 0.0}
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        ordered = sorted(self.violations.items(), key=lambda kv: list(spec.VIOLATIONS).index(kv[0])
+                         if kv[0] in spec.VIOLATIONS else len(spec.VIOLATIONS))
+        return {"type": "summary",
+                "frames": {"host": self.frames["host"], "device": self.frames["device"]},
+                "junk": self.junk,
+                "violations": dict(ordered),
+                "bytes": {"host": self.bytes["host"], "device": self.bytes["device"]},
+                "commands": dict(sorted(self.commands.items())),
+                "answers": dict(sorted(self.answers.items())),
+                "latency_ms": self.latency_stats(),
+                "line_errors": self.line_errors,
+                "unanswered": self.unanswered}
+
+
+def summary_json(summary: dict[str, Any]) -> str:
+    return json.dumps(summary, separators=(",", ":"))

@@ -1,0 +1,268 @@
+"""The conversation analyzer on scripted chunks: each rule of PROTOCOL.md "Violation codes" fires on the
+record the analyzer's docstring names, and nothing else fires; chunking never changes the verdicts."""
+
+from __future__ import annotations
+
+import json
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from strategies import frames
+
+from sniffer.analyzer import Analyzer, analyze
+from sniffer.chunk import Chunk
+from sniffer.records import FrameRecord, JunkRecord, TimeoutRecord
+
+H, D = "host", "device"
+
+
+def run(script, **options):
+    """script: (t, dir, bytes) items; returns records."""
+    return analyze([Chunk(t, d, b) for t, d, b in script], **options)
+
+
+def codes(records):
+    """(dir or type, violations) for every record that has violations."""
+    return [(r.type if isinstance(r, TimeoutRecord) else r.dir, r.violations)
+            for r in records if r.violations]
+
+
+def all_codes(records):
+    return sorted(c for r in records for c in r.violations)
+
+
+def test_clean_exchange_pairs_and_measures_latency():
+    """A command and its answer pair first in, first out; latency is the command's last byte to the
+    answer's first byte (PROTOCOL.md "Violation codes": answers pair first in, first out)."""
+    recs = run([(10.0, H, b"0RP3\r\n"), (10.0025, D, b"0RP39302012345\r\n")])
+    assert [r.type for r in recs] == ["frame", "frame"]
+    cmd, ans = recs
+    assert cmd.fields == {"n": 3} and ans.reply_to == 0
+    assert abs(ans.latency_ms - 2.5) < 1e-6
+    assert all_codes(recs) == []
+    line = json.loads(ans.to_json())
+    assert line == {"type": "frame", "i": 1, "t": 10.0025, "dir": "device",
+                    "raw": b"0RP39302012345\r\n".hex(), "header": "0RP",
+                    "fields": {"n": 3, "v": 9, "a": 3, "o": 0, "pos": 0x12345},
+                    "violations": [], "reply_to": 0, "latency_ms": 2.5}
+
+
+def test_letter_o_then_alarm_then_no_reset():
+    """letter-o is a frame-level violation on the command; the host going on after the alarm answer without
+    a reset is alarm-ignored on the next command (PROTOCOL.md "Violation codes")."""
+    recs = run([(0, H, b"ORP3\r\n"), (0.01, D, b"0%%01\r\n"), (0.1, H, b"0RV\r\n"), (0.11, D, b"0%%01\r\n"),
+                (0.2, H, b"0%C\r\n"), (0.21, D, b"0%C00\r\n"),
+                (0.3, H, b"0RV\r\n"), (0.31, D, b"0RV100\r\n")])
+    assert codes(recs) == [(H, ("letter-o",)), (H, ("alarm-ignored",))]
+
+
+def test_echo_mismatch_and_answer_mismatch():
+    """An echo answer with other fields is echo-mismatch; an answer of another command or another N is
+    answer-mismatch (PROTOCOL.md "Violation codes")."""
+    recs = run([(0, H, b"0WS12\r\n"), (0.01, D, b"0WS02\r\n"), (0.1, H, b"0RP3\r\n"),
+                (0.11, D, b"0RP49302012345\r\n"), (0.2, H, b"0RC\r\n"), (0.21, D, b"0RS02\r\n"),
+                (0.3, H, b"0RV\r\n"), (0.31, D, b"0%C00\r\n")])
+    assert codes(recs) == [(D, ("echo-mismatch",)), (D, ("answer-mismatch",)), (D, ("answer-mismatch",)),
+                           (D, ("answer-mismatch",))]
+
+
+def test_lowercase_echo_is_only_a_notice():
+    """An echo compares decoded fields, so an upper-case echo of a lower-case command is no echo-mismatch;
+    lower case is the lowercase-hex notice (PROTOCOL.md "Framing")."""
+    recs = run([(0, H, b"0WP1930200abcd\r\n"), (0.01, D, b"0WP1930200ABCD\r\n")])
+    assert codes(recs) == [(H, ("lowercase-hex",))]
+
+
+def test_unsolicited_and_no_answer():
+    """An answer with nothing waiting is unsolicited-answer; a command whose 1 s passes unanswered gets a
+    no-answer timeout record (PROTOCOL.md silent item 17), and its late answer is unsolicited."""
+    recs = run([(0, D, b"0RV100\r\n"), (1.0, H, b"0RV\r\n"), (2.5, D, b"0RV100\r\n")])
+    assert codes(recs) == [(D, ("unsolicited-answer",)), ("timeout", ("no-answer",)),
+                           (D, ("unsolicited-answer",))]
+    timeout = recs[2]
+    assert timeout.command == 1 and timeout.t == 2.0 and timeout.waited_s == 1.0
+
+
+def test_answer_that_starts_in_time_is_in_time():
+    """The no-answer deadline applies to the answer's first byte: an answer begun before it and finished
+    after it pairs normally (PROTOCOL.md silent item 17)."""
+    recs = run([(0, H, b"0RV\r\n"), (0.99, D, b"0RV"), (1.2, D, b"100\r\n")])
+    assert all_codes(recs) == [] and recs[-1].reply_to == 0
+
+
+def test_no_answer_without_time_only_at_end():
+    """Without timestamps pairing is by order and a missing answer is found at the end of the data."""
+    recs = run([(None, H, b"0RV\r\n"), (None, D, b"0RV100\r\n"), (None, H, b"0RC\r\n")])
+    assert codes(recs) == [("timeout", ("no-answer",))]
+    assert recs[1].latency_ms is None and recs[2].t is None
+
+
+def test_capture_cut_short_is_not_no_answer():
+    """A command whose deadline had not passed when the data ended is counted as waiting, not failed."""
+    a = Analyzer()
+    recs = a.feed(Chunk(0.0, H, b"0RV\r\n")) + a.close()
+    assert all_codes(recs) == [] and a.summary()["unanswered"] == 1
+
+
+def test_move_gets_a_longer_deadline():
+    """A move's deadline is its estimated time doubled plus the timeout (silent item 17): a 0MV of known
+    start answered after 3 s is fine, a 0RV answered after 3 s is not."""
+    # 0MP0 from position 0: homing of no distance; then 0MV 01 (500 p/s) to 1000 pulses: 2.4 s estimated
+    recs = run([(0, H, b"0RC\r\n"), (0.01, D, b"0RC00002000000\r\n"),
+                (0.1, H, b"0MV0110003E8\r\n"), (3.1, D, b"0MV0110003E8\r\n"),
+                (4.0, H, b"0RV\r\n"), (7.0, D, b"0RV100\r\n")])
+    assert codes(recs) == [("timeout", ("no-answer",)), (D, ("unsolicited-answer",))]
+
+
+def test_command_during_motion_and_overlap():
+    """A host frame while a move waits is command-during-motion (not also overlapping-command); a host
+    frame while another command waits is overlapping-command (PROTOCOL.md "Behaviour the vendor text
+    states"). The discarded command needs no answer."""
+    recs = run([(0, H, b"0MP0\r\n"), (0.5, H, b"0RC\r\n"), (2.0, D, b"0MP00002000000\r\n"),
+                (3.0, H, b"0RV\r\n"), (3.0, H, b"0RS\r\n"), (3.01, D, b"0RV100\r\n"), (3.02, D, b"0RS02\r\n"),
+                (3.1, H, b"0RC\r\n"), (3.11, D, b"0RC00002000000\r\n")])
+    assert codes(recs) == [(H, ("command-during-motion",)), (H, ("overlapping-command",))]
+    assert recs[-1].reply_to == recs[-2].i
+
+
+def test_storm_after_fifth_comm_error():
+    """After the 5th 0%%01 answer in a row (latched repeats count, a reset answer does not end the run)
+    any further command is comm-error-storm; a normal answer ends the run (PROTOCOL.md "Behaviour")."""
+    script = []
+    t = 0.0
+    for _ in range(3):
+        script += [(t, H, b"0RP0\r\n"), (t + 0.01, D, b"0%%01\r\n"), (t + 0.1, H, b"0%C\r\n"),
+                   (t + 0.11, D, b"0%C00\r\n")]
+        t += 0.2
+    script += [(t, H, b"0RV\r\n"), (t + 0.01, D, b"0%%01\r\n"), (t + 0.1, H, b"0RV\r\n"),
+               (t + 0.11, D, b"0%%01\r\n"), (t + 0.2, H, b"0%C\r\n"), (t + 0.21, D, b"0%C00\r\n"),
+               (t + 0.3, H, b"0RV\r\n"), (t + 0.31, D, b"0RV100\r\n"), (t + 0.4, H, b"0RV\r\n"),
+               (t + 0.41, D, b"0RV100\r\n")]
+    recs = run(script)
+    host = [(r.raw, r.violations) for r in recs if r.dir == H and r.violations]
+    # 0RP0 is field-range (N 1-F); the 4th 0RV is sent after 5 comm errors, so is the 0%C and the next 0RV
+    assert host[:3] == [(b"0RP0\r\n", ("field-range",))] * 3
+    assert host[3:] == [(b"0RV\r\n", ("alarm-ignored",)), (b"0%C\r\n", ("comm-error-storm",)),
+                        (b"0RV\r\n", ("comm-error-storm",))]
+    assert all_codes([r for r in recs if r.dir == D]) == []
+
+
+def test_latch_broken_and_estop_cleared():
+    """A normal answer while a non-estop alarm is latched is latch-broken; 0%C00 while emergency stop is
+    latched is estop-cleared; a normal answer under emergency stop means the input was released
+    (PROTOCOL.md silent item 3)."""
+    recs = run([(0, H, b"0RV\r\n"), (0.01, D, b"0%%08\r\n"), (0.1, H, b"0RV\r\n"), (0.11, D, b"0RV100\r\n"),
+                (0.2, H, b"0%C\r\n"), (0.21, D, b"0%C00\r\n"), (0.3, H, b"0RV\r\n"), (0.31, D, b"0%%0E\r\n"),
+                (0.4, H, b"0%C\r\n"), (0.41, D, b"0%C00\r\n"),
+                (0.5, H, b"0RV\r\n"), (0.51, D, b"0%%0E\r\n"), (0.6, H, b"0%C\r\n"), (0.61, D, b"0%%0E\r\n"),
+                (0.7, H, b"0RV\r\n"), (0.71, D, b"0RV100\r\n"),
+                (0.8, H, b"0RV\r\n"), (0.81, D, b"0RV100\r\n")])
+    assert codes(recs) == [(H, ("alarm-ignored",)), (D, ("latch-broken",)), (D, ("estop-cleared",))]
+
+
+def test_junk_lines_and_noise():
+    """Bytes that form no frame are garbage; a junk line (ending in LF) may take an alarm answer (a device
+    reads it as a malformed command, silent item 1) but needs none; noise before a frame is its own junk."""
+    recs = run([(0, H, b"\xff\xfe\r\n"), (0.01, D, b"0%%01\r\n"), (0.1, H, b"\x00\x00"),
+                (0.1, H, b"0%C\r\n"), (0.11, D, b"0%C00\r\n"), (0.2, H, b"hello\r\n"),
+                (0.3, H, b"0RV\r\n"), (0.31, D, b"0RV100\r\n")])
+    assert [(type(r).__name__, r.violations) for r in recs] == [
+        ("JunkRecord", ("garbage",)), ("FrameRecord", ()), ("JunkRecord", ("garbage",)),
+        ("FrameRecord", ()), ("FrameRecord", ()), ("JunkRecord", ("garbage",)), ("FrameRecord", ()),
+        ("FrameRecord", ())]
+    assert recs[1].reply_to == 0 and recs[7].reply_to == 6
+
+
+def test_malformed_command_may_stay_unanswered():
+    """How a device treats a malformed command is a silent point (item 1): no no-answer when it stays
+    silent, and the next command pairs with the next answer."""
+    recs = run([(0, H, b"0RP\r\n"), (2.0, H, b"0RV\r\n"), (2.01, D, b"0%%01\r\n")])
+    assert codes(recs) == [(H, ("bad-length",))]
+    assert recs[-1].reply_to == 1
+
+
+def test_line_errors_go_on_the_record_holding_the_bytes():
+    """A capture tool's line error is reported on each record holding a flagged byte, outside violations."""
+    a = Analyzer()
+    recs = a.feed(Chunk(0, H, b"0RV\r\n0R", "framing error")) + a.feed(Chunk(0.001, H, b"C\r\n"))
+    recs += a.feed(Chunk(0.01, D, b"0RV100\r\n")) + a.close()
+    assert [r.line_errors for r in recs if isinstance(r, FrameRecord)] == [("framing error",)] * 2 + [()]
+    assert a.summary()["line_errors"] == 2
+
+
+CONVERSATION = [
+    (H, b"0RP3\r\n", 0.0), (D, b"0RP39302012345\r\n", 0.01), (H, b"ORP3\r\n", 0.1), (D, b"0%%01\r\n", 0.11),
+    (H, b"0RV\r\n0RV\r\n", 0.2), (D, b"0%%01\r\n\xff0%%01\r\n", 0.21), (H, b"0%C\r\n", 0.3),
+    (D, b"0%C00\r\n", 0.31), (H, b"0MP0\r\n", 0.4), (H, b"0RC\r\n", 0.5), (D, b"0MP00002000000\r\n", 0.9),
+    (H, b"0WS12\r\n", 1.0), (D, b"0WS02\r\n", 1.01), (H, b"zz\r\n", 1.1), (H, b"0RV\r\n", 1.2),
+]
+
+
+def _split(data: bytes, cuts: list[int]) -> list[bytes]:
+    points = sorted({c % (len(data) + 1) for c in cuts} | {0, len(data)})
+    return [data[a:b] for a, b in zip(points, points[1:], strict=False) if b > a]
+
+
+@settings(max_examples=40, deadline=None)
+@given(cuts=st.lists(st.lists(st.integers(0, 40), max_size=6), min_size=len(CONVERSATION),
+                     max_size=len(CONVERSATION)), timed=st.booleans())
+def test_chunking_never_changes_records(cuts, timed):
+    """Feeding each stretch of bytes whole, byte by byte or in any chunks gives the same records (the
+    framer decides on bytes only; time is per stretch here so latency cannot change either)."""
+    whole = [Chunk(t if timed else None, d, b) for d, b, t in CONVERSATION]
+    split = [Chunk(t if timed else None, d, part) for (d, b, t), c in zip(CONVERSATION, cuts, strict=True)
+             for part in _split(b, c)]
+    assert [r.to_json() for r in analyze(whole)] == [r.to_json() for r in analyze(split)]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([H, D]),
+                          st.one_of(st.binary(max_size=30), frames().map(lambda f: f.to_bytes())),
+                          st.floats(0, 0.5)), max_size=25))
+def test_garbage_never_crashes_and_every_byte_is_accounted(items):
+    """Arbitrary bytes in both directions never raise; every byte fed comes out in exactly one frame or
+    junk record of its direction, in order (PROTOCOL.md "Violation codes": garbage)."""
+    t = 0.0
+    chunks = []
+    for d, data, dt in items:
+        t += dt
+        chunks.append(Chunk(t, d, data))
+    recs = analyze(chunks)
+    for d in (H, D):
+        fed = b"".join(c.data for c in chunks if c.dir == d)
+        out = b"".join(r.raw for r in recs if isinstance(r, (FrameRecord, JunkRecord)) and r.dir == d)
+        assert out == fed
+    assert [r.i for r in recs if not isinstance(r, TimeoutRecord)] == list(range(
+        sum(1 for r in recs if not isinstance(r, TimeoutRecord))))
+    for r in recs:
+        json.loads(r.to_json())
+
+
+def test_causal_order_puts_answers_after_their_commands():
+    """Two taps deliver with different delays: an answer read before its command is held until the
+    command comes, a next command read before the previous answer is held until that answer, and a
+    held chunk goes out as it is when its window passes (sniffer/order.py)."""
+    from sniffer.order import CausalOrder
+
+    a = Analyzer()
+    fed: list[Chunk] = []
+
+    def sink(chunk):
+        fed.append(chunk)
+        a.feed(chunk)
+
+    order = CausalOrder(sink, lambda: a.waiting, lambda: a.expecting_answer, window=0.1)
+    order.push(Chunk(1.0, D, b"0RV100\r\n"), now=0.0)  # answer first: held
+    assert fed == []
+    order.push(Chunk(1.001, H, b"0RV\r\n"), now=0.001)
+    assert [c.dir for c in fed] == [H, D] and fed[1].t == 1.001  # times only move forward
+    order.push(Chunk(1.01, H, b"0RS\r\n"), now=0.01)
+    order.push(Chunk(1.02, H, b"0RV\r\n"), now=0.02)  # next command before the answer: held
+    order.push(Chunk(1.02, D, b"0RS02\r\n"), now=0.02)
+    assert [c.data for c in fed[2:]] == [b"0RS\r\n", b"0RS02\r\n", b"0RV\r\n"]
+    order.push(Chunk(2.0, D, b"0RV100\r\n0RV100\r\n"), now=1.0)  # the second answer has no command
+    assert len(fed) == 6
+    order.due(now=1.05)
+    assert len(fed) == 6
+    order.due(now=1.2)
+    assert len(fed) == 7 and fed[-1].data == b"0RV100\r\n"
