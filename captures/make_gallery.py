@@ -1,6 +1,7 @@
 """Make the capture gallery: one scripted XA-C1 session captured through every supported tool.
 
-Run from the repository root: ``python captures/make_gallery.py [OUTDIR]`` (default: ``captures``).
+Run from the repository root: ``python captures/make_gallery.py [OUTDIR [NAME-PART]]`` (default:
+``captures``, every file; NAME-PART remakes only the files whose name contains it).
 Needs socat, jpnevulator, sigrok-cli and editcap (Debian packages socat, jpnevulator, sigrok-cli,
 wireshark-common) and pyserial. The tests import this file to capture the same session live.
 
@@ -210,8 +211,9 @@ def write_pcapng(out: Path) -> None:
             w.write(c)
 
 
-def write_saleae_analyzer(host: Path, device: Path, radix: str = "hex") -> None:
-    """Logic 1.x analyzer export, one file per line; the device's 0WP echo has a framing error."""
+def write_saleae_analyzer(host: Path, device: Path, radix: str = "hex", glitch: bool = False) -> None:
+    """Logic 1.x analyzer export, one file per line, hex or ASCII radix. ``glitch``: the last digit of
+    the device's faulty 0WP echo is flagged in the ``Framing Error`` column, as a noisy line shows."""
     with open(host, "w", newline="") as h, open(device, "w", newline="") as d:
         files = {"host": h, "device": d}
         for f in files.values():
@@ -219,20 +221,37 @@ def write_saleae_analyzer(host: Path, device: Path, radix: str = "hex") -> None:
         for c in per_byte(timeline(t0=0.0)):
             b = c.data[0]
             value = f"0x{b:02X}" if radix == "hex" else _saleae_ascii(b)
-            files[c.dir].write(f"{c.t + 0.5:.9f},{value},,\n")
+            framing = "Error" if glitch and c.t == _glitch_time() else ""
+            files[c.dir].write(f"{c.t + 0.5:.9f},{value},,{framing}\n")
+
+
+def _glitch_time() -> float:
+    """Time (from 0) of the byte a framing error marks: the last digit of the device's 0WP echo."""
+    for c in timeline(t0=0.0):
+        if c.dir == "device" and c.data.startswith(b"0WP"):
+            return c.t + (len(c.data) - 3) * BYTE_S
+    raise AssertionError("the session has no 0WP answer")
 
 
 def _saleae_ascii(b: int) -> str:
+    """A byte as Logic 1.x shows it in ASCII radix: the character, escapes for CR/LF, names for the
+    characters that would break the CSV."""
     return {0x0D: "\\r", 0x0A: "\\n", 0x2C: "COMMA", 0x20: "' '"}.get(b, chr(b))
 
 
-def write_saleae_table(out: Path) -> None:
-    """Logic 2 data table export, both analyzers in one file (named host and device)."""
+def write_saleae_table(out: Path, glitch: bool = False) -> None:
+    """Logic 2 data table export, both analyzers in one file (named host and device). ``glitch``: the
+    byte of ``_glitch_time`` carries ``framing`` in the error column and a ``framing error`` row
+    follows it."""
     with open(out, "w", newline="") as f:
         w = csv.writer(f, quoting=csv.QUOTE_MINIMAL, lineterminator="\n")
         w.writerow(["name", "type", "start_time", "duration", "data", "error"])
         for c in per_byte(timeline(t0=0.0)):
-            w.writerow([c.dir, "data", f"{c.t + 0.5:.9f}", f"{BYTE_S:.9f}", f"0x{c.data[0]:02X}", ""])
+            bad = glitch and c.t == _glitch_time()
+            w.writerow([c.dir, "data", f"{c.t + 0.5:.9f}", f"{BYTE_S:.9f}", f"0x{c.data[0]:02X}",
+                        "framing" if bad else ""])
+            if bad:
+                w.writerow([c.dir, "framing error", f"{c.t + 0.5 + BYTE_S * 0.9:.9f}", "0", "", ""])
 
 
 def write_interceptty(out: Path, timestamps: bool = False) -> None:
@@ -259,7 +278,27 @@ def write_recording(out: Path) -> None:
             w.write(c)
 
 
-def main(outdir: str = "captures") -> int:
+def write_large_socat(out: Path, min_bytes: int) -> int:
+    """A ``socat -x`` log of a faultless conversation repeated (times moving on) until it holds
+    ``min_bytes``: for the progress-bar test and the memory benchmark, never kept in the gallery.
+    Returns its size."""
+    session = [*SESSION[:2], (b"0RP1\r\n", b"0RP19302012345\r\n", 0.15)]
+    count = {">": 0, "<": 0}
+    t = T0
+    with open(out, "w") as f:
+        while f.tell() < min_bytes:
+            for c in timeline(session, t):
+                side = ">" if c.dir == "host" else "<"
+                clock = time.strftime("%Y/%m/%d %H:%M:%S", time.localtime(c.t))
+                stamp = f"{clock}.{int(c.t % 1 * 1e6):06d}"
+                f.write(f"{side} {stamp}  length={len(c.data)} from={count[side]} "
+                        f"to={count[side] + len(c.data) - 1}\n {c.data.hex(' ')}\n")
+                count[side] += len(c.data)
+                t = c.t + 0.2
+        return f.tell()
+
+
+def main(outdir: str = "captures", only: str | None = None) -> int:
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     steps: list[tuple[str, Callable[[], object]]] = [
@@ -276,17 +315,23 @@ def main(outdir: str = "captures") -> int:
                                                  str(out / "session.pcap")], check=True, timeout=60)),
         ("saleae-host.csv", lambda: write_saleae_analyzer(out / "saleae-host.csv",
                                                           out / "saleae-device.csv")),
+        ("saleae-ascii-host.csv", lambda: write_saleae_analyzer(
+            out / "saleae-ascii-host.csv", out / "saleae-ascii-device.csv", radix="ascii", glitch=True)),
         ("saleae-logic2.csv", lambda: write_saleae_table(out / "saleae-logic2.csv")),
+        ("saleae-logic2-glitch.csv", lambda: write_saleae_table(out / "saleae-logic2-glitch.csv",
+                                                                glitch=True)),
         ("interceptty.log", lambda: write_interceptty(out / "interceptty.log")),
         ("interceptty-T.log", lambda: write_interceptty(out / "interceptty-T.log", timestamps=True)),
         ("raw-host.bin", lambda: write_raw(out / "raw-host.bin", out / "raw-device.bin")),
         ("recording.jsonl", lambda: write_recording(out / "recording.jsonl")),
     ]
     for name, make in steps:
+        if only is not None and only not in name:
+            continue
         print(f"making {name}", file=sys.stderr)
         make()
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(*sys.argv[1:2]))
+    sys.exit(main(*sys.argv[1:3]))

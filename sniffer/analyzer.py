@@ -54,6 +54,13 @@ Rules and their triggers (each on the record named):
   of the stop input between the alarm and the reset is invisible on the line.)
 Unsolicited answers update the state (latch, storm run, position) but are checked for nothing else.
 
+Captures without time (``Chunk.t`` None: raw files, interceptty without ``-T``, sigrok without a
+sample rate): order is all there is, and order cannot tell a device that never answered a command from
+a host that did not wait for the answer, since both show as two commands with no answer between. The
+verdict is ``overlapping-command`` on the second command (that is what the order shows; the first keeps
+its place in the queue, so a later answer pairs with it), with a detail saying it may as well be a
+``no-answer`` to the first; a command still waiting when the data ends is ``no-answer`` (``close()``).
+
 Capture-tool line errors (``Chunk.error``) go on every record holding a flagged byte, under
 ``line_errors``; they are not violations.
 """
@@ -291,8 +298,11 @@ class Analyzer:
         else:
             firm = next((w for w in self._queue if w.kind in _FIRM), None)
             if firm is not None:
-                found.add("overlapping-command", f"{what} sent before the answer to #{firm.i} "
-                          f"({firm.header or 'unknown'}) (overlapping-command)")
+                detail = f"{what} sent before the answer to #{firm.i} ({firm.header or 'unknown'})"
+                if firm.t_last is None and event.t_last is None:
+                    detail += (f"; the capture has no time, so this looks the same as #{firm.i} left "
+                               f"unanswered and the host going on after waiting (no-answer)")
+                found.add("overlapping-command", f"{detail} (overlapping-command)")
             kind = MALFORMED if malformed else (OVERLAP if firm is not None else COMMAND)
         is_move = header in spec.MOVE_HEADERS and frame is not None and not malformed
         move_s = self.axis.move_time(frame) if is_move and frame is not None else 0.0

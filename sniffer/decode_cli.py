@@ -6,7 +6,8 @@ views print them. Problems in the file (a malformed line, a truncated record) ar
 with file and line, and what could be read is decoded anyway.
 
 Exit status: 0 every byte read and no violation; 1 violations found or part of the capture could not be
-read; 2 nothing decoded (missing file, unknown format, bad option).
+read (or the file looks cut short); 2 nothing decoded (missing file, unknown format, bad option, a
+capture holding no line data).
 """
 
 from __future__ import annotations
@@ -125,12 +126,17 @@ def _decode(capture: Capture, args: argparse.Namespace) -> int:
         progress.done()
     view.summary(analyzer.summary())
     report = capture.report
+    empty = not (analyzer.bytes_in("host") or analyzer.bytes_in("device"))
     for note in report.notes:
         print(f"xac1 decode: note: {note}", file=sys.stderr)
     for problem in report.problems:
         print(f"xac1 decode: {problem}", file=sys.stderr)
     if report.dropped:
         print(f"xac1 decode: ... and {report.dropped} more problem(s)", file=sys.stderr)
+    if empty:
+        print(f"xac1 decode: {', '.join(args.files)}: no line data found in this {capture.format} "
+              f"capture: nothing to decode", file=sys.stderr)
+        return 2
     if report.total_problems or report.unread_bytes or report.unread_lines:
         print(f"xac1 decode: {capture.format}: {report.summary()}; the rest was decoded", file=sys.stderr)
     return 1 if violations or report.total_problems else 0

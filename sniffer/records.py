@@ -161,8 +161,8 @@ class Tally:
                 self._headers[record.i] = header
             else:
                 self.answers[header] += 1
-                if record.reply_to is not None and record.latency_s is not None:
-                    command = self._headers.get(record.reply_to, "?")
+                command = self._headers.pop(record.reply_to, "?") if record.reply_to is not None else "?"
+                if record.reply_to is not None and record.latency_s is not None:  # a command is answered once
                     self.latencies.setdefault(command, []).append(record.latency_s)
         elif isinstance(record, JunkRecord):
             self.junk += 1

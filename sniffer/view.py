@@ -105,8 +105,9 @@ def violation_lines(record: Record) -> list[str]:
     for code in record.violations:
         severity, meaning = spec.VIOLATIONS.get(code, (spec.ERROR, "?"))
         colour = "yellow" if severity == spec.NOTICE else "red"
-        mine = [d for d in details if d.endswith(f"({code})")]
-        detail = "; ".join(mine) if mine else ""
+        suffix = f" ({code})"
+        mine = [d.removesuffix(suffix) for d in details if d.endswith(suffix)]
+        detail = "; ".join(mine)
         mark = "!" if severity == spec.NOTICE else "✗"
         out.append(f"      [{colour}]{mark} {code}[/]: {escape(meaning)}"
                    + (f" [dim]— {escape(detail)}[/]" if detail else ""))

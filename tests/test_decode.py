@@ -189,3 +189,34 @@ def test_decoded_jsonl_decodes_again_to_the_same(tmp_path: Path) -> None:
     second = xac1(str(out), "--format", "jsonl")
     assert [json.loads(line) for line in second.stdout.splitlines()] == \
         [json.loads(line) for line in first.stdout.splitlines()]
+
+
+@pytest.mark.parametrize("name", ["saleae-ascii-host.csv", "saleae-logic2-glitch.csv"])
+def test_saleae_framing_error_is_a_line_error_on_its_frame(name: str) -> None:
+    """Saleae files with a framing error (ASCII radix analyzer export; Logic 2 table): the flagged byte
+    is read, the frame holding it (the device's 0WP echo) carries it under ``line_errors``, the
+    summary counts one such record, and the session decodes as in every other format."""
+    result = xac1(f"captures/{name}", "--format", "jsonl")
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    flagged = [r for r in lines[:-1] if r.get("line_errors")]
+    assert [(r["dir"], r["header"], bytes.fromhex(r["raw"])) for r in flagged] == \
+        [("device", "0WP", b"0WP19302012344\r\n")]
+    assert "framing error" in flagged[0]["line_errors"][0]
+    assert lines[-1]["line_errors"] == 1 and lines[-1]["frames"] == {"host": 9, "device": 8}
+    frames, violations = conversation([CAPTURES / name] + ([CAPTURES / "saleae-ascii-device.csv"]
+                                                          if "ascii" in name else []))
+    assert frames == expected_frames(gallery.SESSION)
+    assert violations == sorted(gallery.EXPECTED_VIOLATIONS)
+
+
+def test_untimed_capture_says_what_order_cannot_tell() -> None:
+    """interceptty without -T has no time: the unanswered 0RV shows as overlapping-command on the next
+    0RV, with a detail saying it may as well be a no-answer (README "Decoding captures")."""
+    result = xac1("captures/interceptty.log", "--format", "jsonl")
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    overlap = [r for r in lines[:-1] if "overlapping-command" in r["violations"]]
+    assert len(overlap) == 1 and overlap[0]["header"] == "0RV"
+    assert "no time" in overlap[0]["details"][-1] and "no-answer" in overlap[0]["details"][-1]
+    timed = xac1("captures/interceptty-T.log", "--format", "summary")
+    assert "no-answer" in timed.stdout and "overlapping-command" not in timed.stdout

@@ -64,7 +64,7 @@ class Report:
         if self.unread_lines:
             parts.append(f"{self.unread_lines} line(s)")
         if not parts:
-            return "every byte of the capture was read"
+            return f"{self.total_problems} problem(s) in the capture"
         return f"could not read {' and '.join(parts)} ({self.total_problems} problem(s))"
 
 
@@ -79,6 +79,7 @@ class Source:
         self.size = self.path.stat().st_size
         self._f: IO[bytes] = open(self.path, "rb")  # noqa: SIM115 - closed by close()/__exit__
         self.pos = 0
+        self.unterminated: int | None = None  # number of a last line read that has no line end
 
     def lines(self) -> Iterator[tuple[int, str]]:
         """(line number, text without its line end) for each line; bytes read as latin-1 so no byte is
@@ -93,6 +94,7 @@ class Source:
             if not continued:
                 number += 1
             continued = not raw.endswith(b"\n")
+            self.unterminated = number if continued else None
             yield number, raw.decode("latin-1").rstrip("\r\n")
 
     def read(self, n: int) -> bytes:
@@ -102,6 +104,15 @@ class Source:
 
     def where(self, line: int) -> str:
         return f"{self.name}:{line}"
+
+    def check_end(self) -> None:
+        """After reading a text capture: a last line with no line end means the file was cut while
+        being written (every supported tool ends its lines), so that line may be incomplete. A reader
+        that can tell its last record is whole (socat's ``length=``) clears ``unterminated`` first."""
+        if self.unterminated is not None:
+            self.report.problem(self.where(self.unterminated), "the file ends in the middle of this line "
+                                "(no line end): it was cut short, the line may be incomplete")
+            self.unterminated = None
 
     def close(self) -> None:
         self._f.close()

@@ -3,7 +3,9 @@
 How this works: with two files (one per direction) there is no time to merge by, so the bytes are
 paired by order, as a strict request/answer protocol allows: one line (up to and including LF) from
 the host file, then one from the device file, and so on; when one file runs out the rest of the other
-follows. Chunks have ``t=None``, so timing checks (no-answer) cannot run. A single file is one side.
+follows. Chunks have ``t=None``, so timing checks (no-answer) cannot run; a command left unanswered
+shifts the pairing, so ``no-answer`` lands on the last command (said in a note). A single file is one
+side. A file not ending with LF was cut inside a frame (reported with its byte offset).
 
 Host side default: a file whose name says ``host`` (``device`` marks the other), else the first file
 given; ``--host-is`` takes a file name.
@@ -43,6 +45,10 @@ def _lines(src: Source) -> Iterator[bytes]:
             yield buf
             buf = b""
     if buf:
+        if not buf.endswith(b"\n"):
+            src.report.problem(f"{src.name}@{src.pos - len(buf)}", f"the file ends with {len(buf)} byte(s) "
+                               f"and no LF: the capture was cut short inside a frame, or a frame was "
+                               f"left unfinished")
         yield buf
 
 
@@ -55,6 +61,9 @@ def read_files(sources: list[Source], host_is: str | None = None) -> Iterator[Ch
             report.problem(extra.name, "raw: only two files (host and device) are read; this one is "
                                        "skipped", nbytes=extra.size)
         sources = sources[:2]
+    report.note("raw files have no time: lines are paired one host line, then one device line, so a "
+                "command left unanswered shifts the later answers and shows as no-answer on the last "
+                "command; the other checks hold")
     dirs = [(src, sides.direction(src.name)) for src in sources]
     sides.check(report, ", ".join(s.name for s in sources))
     dirs.sort(key=lambda pair: pair[1] != "host")

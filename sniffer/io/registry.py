@@ -85,8 +85,8 @@ def detect(paths: list[str]) -> Detection:
             if len(set(per_file)) > 1:
                 different = " (the files look like different formats: " + ", ".join(
                     f"{p}: {n}" for p, n in zip(paths, per_file, strict=True)) + ")"
-        raise FormatError(f"cannot tell the capture format{different}; considered: {listed}. "
-                          f"Give --input-format, one of: {', '.join(NAMES)}")
+        raise FormatError(f"{', '.join(paths)}: cannot tell the capture format{different}; "
+                          f"considered: {listed}. Give --input-format, one of: {', '.join(NAMES)}")
     return Detection(best[0], considered)
 
 
@@ -132,6 +132,8 @@ class Capture:
             yield from streams[0]
         else:
             yield from heapq.merge(*streams, key=_time_key)
+        for src in self.sources:
+            src.check_end()
         if sides is not None:
             sides.check(self.report, ", ".join(s.name for s in self.sources))
 

@@ -9,7 +9,8 @@ How this works: two layouts are read.
   whose name contains ``error`` marks the byte), one row per frame of an analyzer: ``"Async
   Serial","data",0.001052,0.00104,0x30``. Rows of other types with an error word (``framing error``)
   mark the last byte; other row types are skipped.
-Times are seconds from the start of the capture.
+Times are seconds from the start of the capture. Hex values have two digits (``0x0D``), as Saleae
+prints them. A row with another number of fields than the header is reported as damaged (and read).
 
 Sides: the analyzer export names a side by its file; the data table by the analyzer's ``name`` (the
 file when several files are given). Host side default: a file or analyzer whose name says ``host``
@@ -54,7 +55,7 @@ def value_byte(text: str) -> int | None:
         text = text[1:-1]
     if text in _ESC:
         return _ESC[text]
-    if re.fullmatch(r"0x[0-9A-Fa-f]{1,2}", text):
+    if re.fullmatch(r"0x[0-9A-Fa-f]{2}", text):  # Saleae always prints two hex digits
         return int(text, 16)
     if re.fullmatch(r"\\x[0-9A-Fa-f]{2}", text):
         return int(text[2:], 16)
@@ -63,6 +64,12 @@ def value_byte(text: str) -> int | None:
     if len(text) == 1:
         return ord(text) & 0xFF
     return None
+
+
+def _error_text(column: str, value: str) -> str:
+    """``Framing Error`` + ``Error`` -> ``framing error``; ``error`` + ``framing`` -> ``error: framing``."""
+    value = value.strip()
+    return column if value.lower() in ("error", "1", "true", "x") else f"{column}: {value}"
 
 
 def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
@@ -97,13 +104,16 @@ def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
         except (ValueError, IndexError, StopIteration):
             report.problem(src.where(number), f"not a Saleae row: {line[:60]!r}", nlines=1)
             continue
+        if len(row) != len(header):
+            report.problem(src.where(number), f"row has {len(row)} field(s), the header {len(header)}: "
+                                              f"the row is damaged: {line[:60]!r}")
         key = src.name if (not table or multi_file) else row[0]
         d = sides.direction(key)
         if d is None:
             report.problem(src.where(number), f"a third side {key!r}; its rows are skipped", nlines=1)
             continue
-        error = next((f"{header[i]}: {row[i].strip()}" for i in error_cols
-                      if i < len(row) and row[i].strip()), None)
+        error = next((_error_text(header[i], row[i]) for i in error_cols if i < len(row) and row[i].strip()),
+                     None)
         if table and row[1].strip().lower() != "data":
             word = " ".join(row[1:]).lower()
             if "error" in word:

@@ -4,7 +4,8 @@ How this works: each line is one annotation, ``[START-END ]INSTANCE: [CLASS: ]TE
 with ``--protocol-decoder-samplenum``, the decoder instance (``uart-1``, ``uart-2``: one per ``-P``),
 the class with ``--protocol-decoder-ann-class`` (``rx-data``, ``tx-data``, ``rx-frame-err``...), then
 the annotation text, quoted in some sigrok-cli versions. Data bytes are hex (``30``, the decoder's
-default ``format=hex``) or ASCII (``format=ascii``: ``0``, ``[0D]``). A ``Frame error`` or
+default ``format=hex``) or ASCII (``format=ascii``: ``0``, ``[0D]``); a decoder instance prints one
+format, so an annotation in the other one is a damaged line. A ``Frame error`` or
 ``Parity error`` annotation marks the last byte of that side as damaged on the wire (Chunk.error).
 Sample numbers become seconds with ``--samplerate HZ``; without it the bytes have no time.
 
@@ -121,6 +122,7 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
 
     saw_samples = False
     last_byte: dict[Direction, Chunk] = {}
+    forms: dict[str, str] = {}  # instance -> "hex" or "ascii", from its first data annotation
     for number, line in lines:
         if not line.strip():
             continue
@@ -148,6 +150,13 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
         if cls is not None and not cls.endswith("-data"):
             continue  # start/stop bits, warnings: not data
         value = _byte(text)
+        form = "hex" if re.fullmatch(r'"?[0-9A-Fa-f]{2}"?', text.strip()) else "ascii"
+        if value is not None and forms.setdefault(instance, form) != form:
+            if report_all or only == instance:
+                report.problem(src.where(number), f"annotation {text!r} is {form} but {instance}'s earlier "
+                                                  f"ones are {forms[instance]} (one decoder prints one "
+                                                  f"format): the line is damaged, skipped", nlines=1)
+            continue
         if value is None:
             if not report_all:
                 continue

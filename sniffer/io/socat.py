@@ -10,7 +10,10 @@ to=5`` (``>``: data from socat's first address to its second, ``<``: back). Then
 Some socat releases (1.7.x) print the fraction of a second as nine digits of which the first three are
 ``000`` and the last six the microseconds (``08.000428215`` is 08.428215 s); a file whose fractions all
 start with ``000`` is read that way, the first other nine-digit fraction switches to nanoseconds.
-socat's own diagnostics (``2024/05/01 10:00:00 socat[123] N ...``) are skipped.
+socat's own diagnostics (``2024/05/01 10:00:00 socat[123] N ...``) are skipped. socat counts each
+direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``length=``, or a
+``from=`` past where that side's previous transfer ended (transfers lost), is reported. A restarted
+socat appending to the same log starts again at ``from=0``, which is accepted.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
@@ -22,7 +25,7 @@ from collections.abc import Iterator
 from typing import Final
 
 from ..chunk import Chunk
-from .base import Sides, Source, wallclock
+from .base import Report, Sides, Source, wallclock
 
 FORMAT: Final = "socat"
 DESCRIPTION: Final = "socat -x / -v / -x -v dump"
@@ -68,6 +71,7 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     # the transfer being read: (line, direction, t, length, data, mode "hex"/"text"/None)
     cur: dict | None = None
     text_bytes = 0
+    following: dict[str, int] = {}  # side name -> the from= its next transfer should have
 
     def finish(line: int) -> Chunk | None:
         nonlocal cur
@@ -111,8 +115,10 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                     yield chunk
                 d = sides.direction(m.group(1))
                 assert d is not None
+                length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
+                _check_counters(m.group(1), length, start, end, following, report, src.where(number))
                 cur = {"line": number, "dir": d, "t": clock(m.group(2), m.group(3), m.group(4)),
-                       "length": int(m.group(5)), "data": bytearray(), "mode": None}
+                       "length": length, "data": bytearray(), "mode": None}
                 tail = text[m.end():].strip()
                 if tail:
                     report.problem(src.where(number), f"unexpected text after the header: {tail!r}")
@@ -142,12 +148,35 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 rest = text
                 continue
             report.problem(src.where(number), f"cannot read this dump line: {text[:60]!r}", nlines=1)
+    if cur is not None and cur["mode"] == "text" and len(cur["data"]) == cur["length"]:
+        src.unterminated = None  # -v text need not end with a newline: length= says it is whole
     chunk = finish(number if "number" in locals() else 0)
     if chunk:
         yield chunk
     if text_bytes:
         report.note(f"{src.name}: socat -v text dump: an unprintable byte shows as '.', so a '.' may "
                     f"stand for another byte (use socat -x -v for exact bytes)")
+
+
+def _check_counters(side: str, length: int, start: int, end: int, following: dict[str, int],
+                    report: object, where: str) -> None:
+    """socat counts each direction's bytes: ``from=`` is the count before the transfer, ``to=`` the
+    count of its last byte. A header whose counters disagree with ``length=`` is damaged; a ``from=``
+    past the previous transfer's end means transfers of that side are missing from the log."""
+    assert isinstance(report, Report)
+    if end - start + 1 != length:
+        report.problem(where, f"damaged header: length={length} but from={start} to={end} span "
+                              f"{end - start + 1} byte(s); read as length={length}")
+    elif side in following and start != following[side] and start != 0:
+        gap = start - following[side]
+        if gap > 0:
+            report.problem(where, f"{gap} byte(s) of the {side!r} side are missing before this transfer "
+                                  f"(from={start}, the previous one ended at to={following[side] - 1})",
+                           nbytes=gap)
+        else:
+            report.problem(where, f"from={start} repeats bytes of the {side!r} side (the previous "
+                                  f"transfer ended at to={following[side] - 1}): the log is damaged")
+    following[side] = start + length
 
 
 def _take_text(text: str, rec: dict, report: object, where: str) -> tuple[int, int]:
