@@ -1,0 +1,218 @@
+"""The device under test: one client, one choke point for every byte sent, the motion guard.
+
+Every probe goes through ``DeviceUnderTest.probe`` (the client's ``transact``), which records it as
+evidence for the running check, keeps turnaround times per command and learns the axis state
+(``MoveBudget``). Before a move command is sent, whatever the alarm state, the guard checks that motion
+is allowed and that the target (a point's stored Pos for 0MP) and any homing on the way stay inside the
+safe range; otherwise the probe is refused with ``MotionRefused`` and nothing is sent.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from xac1_proto import spec
+from xac1_proto.codec import diagnose
+from xac1_proto.errors import CommunicationHalted, ResponseTimeout
+from xac1_proto.frames import (
+    AlarmAnswer,
+    AlarmReset,
+    Frame,
+    MoveDirect,
+    MovePoint,
+    ReadCurrent,
+    ReadVersion,
+    ReadVersionAnswer,
+)
+from xac1_proto.movewait import MoveBudget
+
+from .evidence import Probe, describe_answer
+from .settings import Settings
+
+
+class DeviceAbort(Exception):
+    """The run cannot go on safely (emergency stop, host duty halt, a device that stopped answering)."""
+
+
+class MotionRefused(Exception):
+    """A move the safety rules forbid; nothing was sent. The message says why."""
+
+
+@dataclass
+class Info:
+    """What the device did where PROTOCOL.md is silent: information, never a verdict."""
+
+    topic: str
+    section: str
+    observed: str
+    probes: list[Probe] = field(default_factory=list)
+
+
+class DeviceUnderTest:
+    """A client plus the evidence log, timing, axis knowledge and the motion guard."""
+
+    def __init__(self, settings: Settings, client: Any) -> None:
+        self.settings = settings
+        self.client = client
+        self.budget = MoveBudget()
+        self.log: list[Probe] = []
+        self.infos: list[Info] = []
+        self.latencies: dict[str, list[float]] = {}
+        self.test: str | None = None
+        self.version: str | None = None
+        self.latched: bool | None = None  # None: not known (start, after silence)
+        self.outputs: int | None = None
+        self.cited: dict[str | None, list[Probe]] = {}
+
+    @classmethod
+    def open(cls, settings: Settings) -> DeviceUnderTest:
+        from xac1_proto.client import Client  # heavy: only when a run really starts
+
+        return cls(settings, Client(settings.port, timeout=settings.timeout, time_scale=settings.time_scale))
+
+    def close(self) -> None:
+        self.client.close()
+
+    # ---- the choke point ----
+
+    def probe(self, raw: bytes, *, timeout: float | None = None) -> Probe:
+        """Send ``raw`` (always ending in LF) through ``transact`` and record what came back."""
+        if not raw.endswith(b"\n"):
+            raise ValueError(f"probe {raw!r} does not end with LF (PROTOCOL.md silent item 1)")
+        command, _ = diagnose(raw, spec.COMMAND)
+        self._guard(raw, command)
+        try:
+            ex = self.client.transact(raw, timeout=timeout)
+        except ResponseTimeout as exc:
+            p = Probe(self.test, raw, b"", None, [], None, timed_out=True, partial=exc.partial)
+            self.latched = None
+            self.budget.observe(command, None, False)
+        except CommunicationHalted as exc:
+            raise DeviceAbort(f"the client stopped sending after repeated communication errors "
+                              f"(the vendor's host duty): {exc}") from exc
+        else:
+            p = Probe(self.test, raw, ex.raw, ex.frame, list(ex.violations), ex.latency, junk=ex.junk)
+            self._learn(command, p)
+        self.log.append(p)
+        return p
+
+    def send(self, frame: Frame, *, timeout: float | None = None) -> Probe:
+        return self.probe(frame.to_bytes(), timeout=timeout)
+
+    def _learn(self, command: Frame | None, p: Probe) -> None:
+        if p.latency is not None and command is not None:
+            self.latencies.setdefault(command.header, []).append(p.latency)
+        if p.alarm is not None:
+            self.latched = p.alarm.code != spec.ALARM_NONE
+        elif p.frame is not None and p.frame.header == spec.RESET_HEADER or p.frame is not None:
+            self.latched = False
+        self.budget.observe(command, p.frame, not p.errors)
+        if isinstance(p.frame, ReadVersionAnswer) and not p.errors:
+            self.version = self.version or p.frame.version
+        if p.normal and p.frame is not None and "o" in p.frame.fields() and p.frame.header in ("0RS", "0WS"):
+            self.outputs = p.frame.o
+
+    def _guard(self, raw: bytes, command: Frame | None) -> None:
+        header = raw[: spec.HEADER_WIDTH].decode("ascii", "replace")
+        moving = header in spec.MOVE_HEADERS or "0" + header[1:] in spec.MOVE_HEADERS
+        if not moving:
+            return
+        s = self.settings
+        if not s.motion:
+            raise MotionRefused("motion not allowed: pass --xac1-allow-motion and --xac1-safe-range LO:HI")
+        if s.simulator:
+            return  # nothing to damage: the suite may probe any target, even beyond the stroke
+        if not isinstance(command, (MovePoint, MoveDirect)):
+            raise MotionRefused(f"a malformed move command {raw!r} is only sent to the simulator")
+        homing = isinstance(command, MovePoint) and command.n == 0
+        if self.budget.homed is None and not self.latched:
+            self.current_position()  # learn whether the move would home first
+        if (homing or self.budget.homed is not True) and not s.may_home:
+            raise MotionRefused(f"{'homing' if homing else 'the axis may not be homed and would home'}"
+                                f" first: the origin is outside the safe range {s.describe_range()}")
+        if homing:
+            return
+        if isinstance(command, MoveDirect):
+            target = command.pos
+        else:
+            point = self.budget.points.get(command.n)
+            if point is None:
+                raise MotionRefused(f"point {command.n:X}'s position is not known: read it first")
+            target = point.pos
+        if not s.in_range(target):
+            raise MotionRefused(f"target 0x{target:06X} is outside the safe range {s.describe_range()}")
+
+    # ---- alarms ----
+
+    def settle(self) -> None:
+        """Reset a latched alarm (or one that may be latched) and confirm normal answers are back."""
+        if self.latched is False:
+            return
+        reset = self.send(AlarmReset())
+        if reset.alarm is not None and reset.alarm.code == spec.ALARM_ESTOP:
+            raise DeviceAbort("emergency stop is active (alarm 0E): 0%C cannot clear it. Release the "
+                              "emergency stop input, then run again")
+        check = self.send(ReadVersion())
+        if check.frame is None or check.alarm is not None:
+            raise DeviceAbort(f"after an alarm reset the device still gives {describe_answer(check)} "
+                              f"({check.show()}): the run cannot go on")
+        # A non-alarm answer ends the run of communication errors (PROTOCOL.md host duty), even when it
+        # breaks a framing rule: that is for the checks to judge, not a reason to stop talking.
+        self.client.rearm()
+
+    # ---- positions ----
+
+    def current_position(self) -> Probe:
+        return self.send(ReadCurrent())
+
+    def home_if_needed(self) -> None:
+        """Make sure the axis is homed (homing only when allowed); MotionRefused otherwise."""
+        if self.budget.homed is None:
+            self.current_position()
+        if self.budget.homed is not True:
+            p = self.send(MovePoint(n=0))
+            if p.frame is None or p.alarm is not None:  # a flawed but real answer is for the checks
+                raise DeviceAbort(f"homing failed: {describe_answer(p)} ({p.show()})")
+
+    def safe_targets(self, count: int) -> list[int]:
+        """``count`` distinct positions spread over the safe range, hex letters included where possible."""
+        assert self.settings.safe_range is not None
+        lo, hi = self.settings.safe_range
+        span = hi - lo
+        picks = [lo + span * k // max(count, 1) + (0xAB if span > 0x200 else 0) for k in range(1, count + 1)]
+        out = []
+        for t in picks:
+            t = min(max(t, lo), hi)
+            if t not in out:
+                out.append(t)
+        return out or [lo]
+
+    # ---- evidence ----
+
+    def probes_for(self, test: str) -> list[Probe]:
+        """The evidence of one check: probes it cited (shared samples), then those it sent."""
+        return self.cited.get(test, []) + [p for p in self.log if p.test == test]
+
+    def cite(self, *probes: Probe) -> None:
+        """File probes sent earlier (a shared sample) as evidence of the running check too."""
+        mine = self.cited.setdefault(self.test, [])
+        mine += [p for p in probes if p.test != self.test and p not in mine]
+
+    def info(self, topic: str, section: str, observed: str, *probes: Probe) -> None:
+        self.infos.append(Info(topic, section, observed, list(probes)))
+
+    def timing_table(self) -> list[tuple[str, int, float, float, float]]:
+        """(command, count, min, median, max) of answer turnaround in seconds, per command header."""
+        return [(h, len(v), min(v), statistics.median(v), max(v))
+                for h, v in sorted(self.latencies.items()) if v]
+
+    def wait_quiet(self, seconds: float) -> None:
+        """Let a move already under way finish (used after an interruption)."""
+        time.sleep(seconds)
+
+
+def is_alarm(p: Probe, code: int | None = None) -> bool:
+    return isinstance(p.frame, AlarmAnswer) and (code is None or p.frame.code == code)

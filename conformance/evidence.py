@@ -1,0 +1,101 @@
+"""Evidence: what one probe put on the line and got back, and how a check states a broken rule.
+
+Every byte the suite sends goes through ``DeviceUnderTest.probe`` and becomes a ``Probe``; a check that
+finds a rule broken raises ``RuleBroken`` with the probes that show it, so the report can print the
+exact bytes sent and received next to the verdict.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from xac1_proto import spec
+from xac1_proto.errors import Violation
+from xac1_proto.frames import AlarmAnswer, Frame
+
+_ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
+
+
+def wire(data: bytes) -> str:
+    """Bytes as they read on the wire: printable ASCII as is, ``\\r``, ``\\n``, ``\\xNN``."""
+    return "".join(chr(b) if 0x20 <= b < 0x7F and b != 0x5C else _ESCAPES.get(b, f"\\x{b:02X}")
+                   for b in data)
+
+
+@dataclass
+class Probe:
+    """One command and its answer. ``raw`` is b"" and ``timed_out`` True when nothing complete came."""
+
+    test: str | None
+    sent: bytes
+    raw: bytes
+    frame: Frame | None
+    violations: list[Violation]
+    latency: float | None
+    timed_out: bool = False
+    junk: bytes = b""
+    partial: bytes = b""
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def errors(self) -> list[Violation]:
+        """Violations that break a stated rule (notices such as ``lowercase-hex`` left out)."""
+        return [v for v in self.violations if v.code not in spec.NOTICES]
+
+    @property
+    def alarm(self) -> AlarmAnswer | None:
+        return self.frame if isinstance(self.frame, AlarmAnswer) else None
+
+    @property
+    def normal(self) -> bool:
+        """A decoded, rule-abiding answer that is not an alarm."""
+        return self.frame is not None and self.alarm is None and not self.errors
+
+    @property
+    def answered(self) -> bool:
+        """A decoded answer that is not an alarm (framing flaws aside: the framing checks judge those)."""
+        return self.frame is not None and self.alarm is None
+
+    def echoes(self) -> bool:
+        """The answer carries the command's header and fields (framing flaws aside)."""
+        from xac1_proto.codec import diagnose
+
+        command, _ = diagnose(self.sent, spec.COMMAND)
+        return (self.answered and command is not None and self.frame.header == command.header
+                and self.frame.fields() == command.fields())
+
+    @property
+    def command_header(self) -> str:
+        return self.sent[: spec.HEADER_WIDTH].decode("ascii", "replace")
+
+    def show(self) -> str:
+        got = wire(self.raw) if self.raw else f"no answer{self._partial()}"
+        return f"{wire(self.sent)} -> {got}"
+
+    def _partial(self) -> str:
+        return f" (partial: {wire(self.partial)})" if self.partial else ""
+
+
+class RuleBroken(AssertionError):
+    """A stated rule the device broke; ``probes`` are the evidence."""
+
+    def __init__(self, message: str, probes: list[Probe] | tuple[Probe, ...] = ()):
+        super().__init__(message)
+        self.probes = list(probes)
+
+
+def expect(condition: object, message: str, *probes: Probe) -> None:
+    """Raise ``RuleBroken(message, probes)`` unless ``condition`` holds."""
+    if not condition:
+        raise RuleBroken(message, probes)
+
+
+def describe_answer(p: Probe) -> str:
+    """A person's summary of what came back."""
+    if p.timed_out:
+        return "no answer (silence)" + p._partial()
+    if p.frame is None:
+        return f"an undecodable answer {wire(p.raw)!r}"
+    if p.alarm is not None:
+        return f"alarm {p.alarm.code:02X} ({p.alarm.meaning})"
+    return str(p.frame)

@@ -1,0 +1,303 @@
+"""The pytest plugin (entry point ``pytest11``): options, the device fixtures, ordering, verdicts, report.
+
+How it works: importing this module costs nothing beyond pytest itself; every hook returns at once
+unless the run uses an ``--xac1-*`` option or collects the checks of ``conformance.checks``. Then the
+options become a ``Settings`` (bad values stop the run with a usage error), the checks are ordered
+(power-on checks first, the random-sequence check last) and those the settings forbid are skipped with
+the reason. The first check that needs the device opens it and snapshots the points and OUT ports; every
+check starts with any latched alarm reset. Each check's outcome becomes a ``Result`` with the rule from
+its docstring and the probes as evidence. When the session ends, even after Ctrl-C, the device is
+restored and verified (Ctrl-C is ignored meanwhile), then the summary table and the report file are
+written.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import re
+import signal
+import threading
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+CHECKS_DIR = Path(__file__).resolve().parent / "checks"
+_SECTION = re.compile(r'PROTOCOL\.md[\s,]+((?:silent item \d+)|(?:"[^"]+"))')
+MARKERS = {
+    "xac1_motion": "the check moves the actuator (needs --xac1-allow-motion and a safe range)",
+    "xac1_fresh": "the check needs a freshly powered-on, never-homed device (--xac1-fresh); runs first",
+    "xac1_info": "records what the device does where PROTOCOL.md is silent; never a failed verdict",
+    "xac1_last": "runs after every other check",
+}
+
+
+class Xac1Run:
+    """Everything one session knows: settings, the device, its snapshot, results, restore outcome."""
+
+    def __init__(self, config: pytest.Config) -> None:
+        self.config = config
+        self.settings: Any = None
+        self.dut: Any = None
+        self.snapshot: Any = None
+        self.restore_report: Any = None
+        self.restored = False
+        self.results: list[Any] = []
+        self.abort: str | None = None
+        self.started = _dt.datetime.now().astimezone()
+        self.active = False
+
+
+RUN_KEY = pytest.StashKey[Xac1Run]()
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    g = parser.getgroup("xac1", "XA-C1 conformance suite")
+    g.addoption("--xac1-port", metavar="URL", default=None,
+                help="device under test: a pyserial URL or device path (default: the built-in simulator)")
+    g.addoption("--xac1-allow-motion", action="store_true", default=False,
+                help="allow moving the actuator (implied for the simulator); needs --xac1-safe-range")
+    g.addoption("--xac1-fresh", action="store_true", default=False,
+                help="the device was just powered on and never homed: run the power-on checks first")
+    g.addoption("--xac1-safe-range", metavar="LO:HI", default=None,
+                help="positions the actuator may be moved to, decimal or 0x-hex (e.g. 0:0x1000)")
+    g.addoption("--xac1-seed", metavar="N", type=int, default=None,
+                help="seed of the random command sequences (default 0: the same sequences every run)")
+    g.addoption("--xac1-examples", metavar="N", type=int, default=None,
+                help="random command sequences to try (default 30 on the simulator, 10 on a device)")
+    g.addoption("--xac1-timeout", metavar="S", type=float, default=None,
+                help="seconds to wait for an answer (default 0.5; 0.2 on the built-in simulator)")
+    g.addoption("--xac1-report", metavar="FILE", default=None,
+                help="write the acceptance report to FILE (.md for Markdown, .html for HTML)")
+
+
+def _options_used(config: pytest.Config) -> bool:
+    names = ("xac1_port", "xac1_allow_motion", "xac1_fresh", "xac1_safe_range", "xac1_seed",
+             "xac1_examples", "xac1_timeout", "xac1_report")
+    return any(config.getoption(n) not in (None, False) for n in names)
+
+
+def _run(config: pytest.Config) -> Xac1Run | None:
+    return config.stash.get(RUN_KEY, None)
+
+
+def is_check(item: pytest.Item) -> bool:
+    return CHECKS_DIR in Path(str(item.path)).resolve().parents
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    for name, doc in MARKERS.items():
+        config.addinivalue_line("markers", f"{name}: {doc}")
+    run = Xac1Run(config)
+    config.stash[RUN_KEY] = run
+    if _options_used(config):
+        _activate(run)
+
+
+def _activate(run: Xac1Run) -> None:
+    if run.active:
+        return
+    from .settings import Settings, SettingsError
+
+    c = run.config
+    try:
+        run.settings = Settings.make(c.getoption("xac1_port"), c.getoption("xac1_allow_motion"),
+                                     c.getoption("xac1_fresh"), c.getoption("xac1_safe_range"),
+                                     seed=c.getoption("xac1_seed"), examples=c.getoption("xac1_examples"),
+                                     timeout=c.getoption("xac1_timeout"))
+    except SettingsError as exc:
+        raise pytest.UsageError(str(exc)) from None
+    report = c.getoption("xac1_report")
+    if report and Path(report).suffix.lower() not in (".md", ".markdown", ".html", ".htm"):
+        raise pytest.UsageError(f"--xac1-report {report}: the name must end in .md or .html")
+    run.active = True
+
+
+def _order(item: pytest.Item) -> int:
+    if item.get_closest_marker("xac1_fresh"):
+        return 0
+    if item.get_closest_marker("xac1_last"):
+        return 2
+    return 1
+
+
+def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config,
+                                  items: list[pytest.Item]) -> None:
+    run = _run(config)
+    checks = [i for i in items if is_check(i)]
+    if run is None or not checks:
+        return
+    _activate(run)
+    s = run.settings
+    others = [i for i in items if not is_check(i)]
+    checks.sort(key=_order)  # stable: file order within each group
+    items[:] = checks + others
+    for item in checks:
+        if item.get_closest_marker("xac1_fresh") and not s.fresh:
+            item.add_marker(pytest.mark.skip(
+                reason="needs a device just powered on and never homed: pass --xac1-fresh"))
+        elif item.get_closest_marker("xac1_motion") and not s.motion:
+            item.add_marker(pytest.mark.skip(
+                reason="moves the actuator: pass --xac1-allow-motion --xac1-safe-range LO:HI"))
+
+
+# ---- fixtures ----
+
+@pytest.fixture(scope="session")
+def xac1_settings(request: pytest.FixtureRequest) -> Any:
+    """The run's ``Settings`` (port, motion, safe range, fresh, seed)."""
+    run = _run(request.config)
+    assert run is not None
+    _activate(run)
+    return run.settings
+
+
+@pytest.fixture(scope="session")
+def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
+    """The device under test, opened once; points and OUT ports snapshotted before any write and
+    restored when the session ends."""
+    from .dut import DeviceAbort, DeviceUnderTest
+    from .safety import take_snapshot
+
+    run = _run(request.config)
+    assert run is not None
+    try:
+        dut = DeviceUnderTest.open(xac1_settings)
+    except Exception as exc:  # noqa: BLE001 - a port that does not open ends the run, with the reason
+        run.abort = f"cannot open {xac1_settings.port}: {exc}"
+        pytest.exit(f"xac1: {run.abort}", returncode=3)
+    run.dut = dut
+    dut.test = "(session start: snapshot)"
+    try:
+        run.snapshot = take_snapshot(dut)
+    except DeviceAbort as exc:
+        run.abort = f"cannot take the safety snapshot: {exc}"
+        pytest.exit(f"xac1: {run.abort}; nothing was written", returncode=3)
+    yield dut
+    _finish(run)
+
+
+@pytest.fixture
+def xac1_dut(request: pytest.FixtureRequest, xac1_device: Any) -> Any:
+    """The device for one check: evidence is filed under the check, a latched alarm is reset first."""
+    xac1_device.test = "(between checks: alarm reset)"
+    xac1_device.settle()
+    xac1_device.test = request.node.nodeid
+    yield xac1_device
+    xac1_device.test = None
+
+
+@pytest.fixture(scope="session")
+def xac1_snapshot(request: pytest.FixtureRequest, xac1_device: Any) -> Any:
+    """The points and OUT ports as they were before the run (``safety.Snapshot``)."""
+    run = _run(request.config)
+    assert run is not None
+    return run.snapshot
+
+
+@pytest.fixture(scope="session")
+def xac1_kit(xac1_device: Any, xac1_snapshot: Any) -> Any:
+    """Scratch points, safe positions and the shared sample exchanges (``kit.Kit``)."""
+    from .kit import Kit
+
+    return Kit(xac1_device, xac1_snapshot)
+
+
+# ---- outcomes ----
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item) -> Any:
+    if not is_check(item):
+        return (yield)
+    from .dut import MotionRefused
+
+    try:
+        return (yield)
+    except MotionRefused as exc:
+        pytest.skip(f"not moved: {exc}")
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    report = yield
+    run = _run(item.config)
+    if run is None or not run.active or not is_check(item):
+        return report
+    from .dut import DeviceAbort
+    from .report import result_from
+
+    if call.excinfo is not None and call.excinfo.errisinstance(DeviceAbort):
+        run.abort = str(call.excinfo.value)
+        item.session.shouldstop = f"xac1: {run.abort}"
+    if report.when == "call" or (report.when == "setup" and not report.passed) or (
+            report.when == "teardown" and report.failed):
+        run.results = [r for r in run.results if r.nodeid != item.nodeid or report.when != "teardown"]
+        result = result_from(item, report, call, run.dut)
+        run.results.append(result)
+        report.user_properties += [("rule", result.rule), ("verdict", result.verdict)]
+        report.user_properties += [("evidence", p.show()) for p in result.probes[:4]]
+    return report
+
+
+def _finish(run: Xac1Run) -> None:
+    """Restore the device once (Ctrl-C ignored meanwhile), then close it."""
+    if run.restored or run.dut is None:
+        return
+    run.restored = True
+    from .safety import restore
+
+    old = None
+    if threading.current_thread() is threading.main_thread():
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        run.dut.test = "(session end: restore)"
+        if run.snapshot is not None:
+            run.restore_report = restore(run.dut, run.snapshot)
+    finally:
+        try:
+            run.dut.close()
+        finally:
+            if old is not None:
+                signal.signal(signal.SIGINT, old)
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    run = _run(session.config)
+    if run is None or not run.active:
+        return
+    if exitstatus == pytest.ExitCode.INTERRUPTED and not run.abort:
+        run.abort = "interrupted (Ctrl-C) before every check ran"
+    if run.dut is not None and not run.restored:
+        print("\nxac1: restoring the device's points and OUT ports...", flush=True)
+        _finish(run)
+    if run.restore_report is not None and run.restore_report.problems and session.exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+    path = session.config.getoption("xac1_report")
+    if path:
+        from .report import build, write_file
+
+        write_file(Path(path), build(run))
+
+
+def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
+    run = _run(config)
+    if run is None or not run.active or not run.results:
+        return
+    from .report import build, terminal_lines
+
+    tr = terminalreporter
+    screen = getattr(getattr(tr, "_tw", None), "fullwidth", 0)
+    width = max(screen, int(os.environ.get("COLUMNS", "0") or 0), 130)
+    tr.write_sep("=", "XA-C1 conformance")
+    for line, markup in terminal_lines(build(run), width):
+        tr.write_line(line, **markup)
+    path = config.getoption("xac1_report")
+    if path:
+        tr.write_line(f"report written to {path}")
+
+
+def section_of(doc: str) -> str:
+    """The PROTOCOL.md section a check's docstring cites ('' when none)."""
+    m = _SECTION.search(doc or "")
+    return " ".join(m.group(1).strip('"').split()) if m else ""

@@ -1,0 +1,112 @@
+"""What a conformance run may do to the device: port, motion, safe range, fresh device, seed.
+
+The rules (README "Conformance"): the built-in simulator (a ``xac1sim://`` URL) may always move and is
+always fresh; a real device moves only with ``--xac1-allow-motion`` and a safe range, and only to
+positions inside that range; the power-on checks run only on a device declared fresh.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from xac1_proto import spec
+
+SIMULATOR_SCHEME = "xac1sim://"
+# The built-in simulator with instant motion: a run against it takes seconds, not minutes.
+DEFAULT_PORT = SIMULATOR_SCHEME + "?time_scale=0"
+# Where the suite moves the simulator when the user gives no safe range.
+SIMULATOR_SAFE_RANGE = (0, 0xFFFF)
+DEFAULT_SEED = 0
+
+
+class SettingsError(ValueError):
+    """A bad option value or combination; the message says which and what is expected."""
+
+
+def parse_position(text: str, what: str) -> int:
+    """A position given as decimal (``4096``) or 0x-hex (``0x1000``), inside 000000-FFFFFE."""
+    t = text.strip()
+    try:
+        value = int(t, 16) if t.lower().startswith("0x") else int(t, 10)
+    except ValueError:
+        raise SettingsError(f"{what}: expected a decimal or 0x-hex position, got {text!r}") from None
+    top = spec.UNKNOWN_POSITION - 1  # FFFFFF is the "unknown position" marker, never a target
+    if not 0 <= value <= top:
+        raise SettingsError(f"{what}: position {text!r} is outside 0-0x{top:06X}")
+    return value
+
+
+def parse_safe_range(text: str) -> tuple[int, int]:
+    """``LO:HI`` (decimal or 0x-hex, LO <= HI) as a pair of ints."""
+    lo_text, sep, hi_text = text.partition(":")
+    if not sep:
+        raise SettingsError(f"--xac1-safe-range: expected LO:HI (e.g. 0:0x1000), got {text!r}")
+    lo = parse_position(lo_text, "--xac1-safe-range LO")
+    hi = parse_position(hi_text, "--xac1-safe-range HI")
+    if lo > hi:
+        raise SettingsError(f"--xac1-safe-range: LO 0x{lo:06X} is above HI 0x{hi:06X}")
+    return lo, hi
+
+
+def _sim_time_scale(url: str) -> float:
+    """The ``time_scale`` of a ``xac1sim://`` URL (1 when absent or unreadable: wait as for real motion)."""
+    from urllib.parse import parse_qs, urlsplit
+
+    try:
+        return float(parse_qs(urlsplit(url).query).get("time_scale", ["1"])[-1])
+    except ValueError:
+        return 1.0
+
+
+def is_simulator(port: str) -> bool:
+    return port.startswith(SIMULATOR_SCHEME)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The options of one run, checked for consistency by ``make``."""
+
+    port: str
+    simulator: bool
+    motion: bool
+    fresh: bool
+    safe_range: tuple[int, int] | None
+    seed: int | None  # None: derandomized (the same sequences every run)
+    examples: int
+    timeout: float = 0.5  # turnaround timeout of one answer, seconds
+    time_scale: float = 1.0  # how fast moves run compared with the speed table (the simulator's option)
+
+    @classmethod
+    def make(cls, port: str | None, allow_motion: bool, fresh: bool, safe_range: str | None,
+             seed: int | None = None, examples: int | None = None,
+             timeout: float | None = None) -> Settings:
+        port = port or DEFAULT_PORT
+        sim = is_simulator(port)
+        rng = parse_safe_range(safe_range) if safe_range else None
+        if rng is None and sim:
+            rng = SIMULATOR_SAFE_RANGE
+        motion = allow_motion or sim
+        if motion and rng is None:
+            raise SettingsError("--xac1-allow-motion on a real device needs --xac1-safe-range LO:HI: the "
+                                "positions the actuator may be moved to (e.g. --xac1-safe-range 0:0x1000)")
+        if examples is not None and examples < 1:
+            raise SettingsError(f"--xac1-examples: expected a positive count, got {examples}")
+        if timeout is not None and timeout <= 0:
+            raise SettingsError(f"--xac1-timeout: expected seconds > 0, got {timeout}")
+        return cls(port=port, simulator=sim, motion=motion, fresh=fresh or sim, safe_range=rng,
+                   seed=DEFAULT_SEED if seed is None else seed, examples=examples or (30 if sim else 10),
+                   timeout=timeout or (0.2 if sim else 0.5), time_scale=_sim_time_scale(port) if sim else 1.0)
+
+    def in_range(self, pos: int) -> bool:
+        return self.safe_range is not None and self.safe_range[0] <= pos <= self.safe_range[1]
+
+    @property
+    def may_home(self) -> bool:
+        """Homing goes to the origin: allowed only when motion is and the origin is inside the range."""
+        return self.motion and self.in_range(0)
+
+    def describe_range(self) -> str:
+        if self.safe_range is None:
+            return "none (no motion)"
+        lo, hi = self.safe_range
+        return f"0x{lo:06X}-0x{hi:06X} ({lo}-{hi})"

@@ -1,0 +1,171 @@
+"""The suite proves itself: it passes the simulator, fails it for each deviation naming the right check,
+still passes it with other choices on every silent point, and leaves a device as it found it.
+
+Each run is ``xac1 conformance`` in a subprocess (the installed suite, no source tree); the deviation
+runs go in parallel and are read back from their JUnit XML.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from xac1_proto.client import Client
+from xac1_proto.sim import DEVIATIONS, SimConfig, serve_tcp
+
+RUN_TIMEOUT = 90
+FAST = ["--examples", "8"]
+
+# deviation -> a check (JUnit test name prefix) that must fail for it
+EXPECTED = {
+    "no-2": "test_mandatory_2",
+    "wrong-length": "test_answer_length",
+    "echo-differs": "test_write_point_echo",
+    "alarm-not-latched": "test_alarm_latched",
+    "wrong-reset-answer": "test_reset_clears_alarm",
+    "rc-before-homing-not-ffffff": "test_rc_before_homing",
+    "write-not-stored": "test_read_back_after_write",
+    "outputs-not-stored": "test_outputs_read_back",
+    "move-not-performed": "test_direct_move_reaches_target",
+    "lf-only": "test_crlf",
+    "letter-o": "test_leading_zero",
+    "silent-on-malformed": "test_malformed_answered_with_alarm",
+    "swapped-fields": "test_read_back_after_write",
+    "wrong-n": "test_read_point_carries_n",
+    "estop-cleared": "test_estop_survives_reset",
+}
+# every PROTOCOL.md silent point set to another choice than the simulator's default
+OTHER_CHOICES = SimConfig(
+    time_scale=0, accept_lowercase=True, estop_rehome=False, point_move_sets_outputs=False,
+    discard_during_move=False, cm0_sticky=True, turnaround_s=0.005, malformed_alarm=0x07,
+    position_alarm=0x09, store_before_homing_alarm=0x0B, unwritten_point=(1, 1, 0, 0), version="102",
+)
+
+
+def conformance(args: list[str], cwd: Path, timeout: float = RUN_TIMEOUT) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def failed_checks(junit: Path) -> set[str]:
+    root = ET.parse(junit).getroot()
+    return {case.get("name", "") for case in root.iter("testcase")
+            if case.find("failure") is not None or case.find("error") is not None}
+
+
+def read_table(url: str) -> tuple[list[tuple[int, int, int, int]], int]:
+    """Every point's V, A, O, Pos and the OUT ports, read through a plain client."""
+    with Client(url, timeout=2) as c:
+        points = [(a.v, a.a, a.o, a.pos) for a in (c.read_point(n) for n in range(1, 16))]
+        return points, c.read_outputs().o
+
+
+def test_passes_the_simulator_with_report(tmp_path):
+    """`xac1 conformance` passes the built-in simulator (exit 0), writes JUnit XML and a Markdown report
+    with the verdicts, evidence bytes, information section and timing table."""
+    report, junit = tmp_path / "acceptance.md", tmp_path / "junit.xml"
+    r = conformance(["--report", str(report), "--junitxml", str(junit)], tmp_path)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-2000:]
+    assert "CONFORMS" in r.stdout and "evidence (sent -> received)" in r.stdout
+    text = report.read_text()
+    for part in ("Verdict: CONFORMS", "firmware version | 100", "xac1sim://", "`0RV\\r\\n -> 0RV100\\r\\n`",
+                 "## Information", "silent item 1", "## Answer turnaround", "| 0RP |", "## Safety"):
+        assert part in text, part
+    assert not failed_checks(junit)
+
+
+def test_html_report_and_skips_are_explained(tmp_path):
+    """An HTML report by suffix; checks a real device does not allow (motion, power-on) are listed as
+    skipped with the reason, and a run with only skips and passes exits 0."""
+    report = tmp_path / "r.html"
+    with serve_tcp(SimConfig(time_scale=0)) as sim:
+        r = conformance(["--port", sim.url, "--report", str(report), "-k", "echo or power_on or version"],
+                        tmp_path)
+        status = sim.model.status()
+    assert r.returncode == 0, r.stdout[-3000:]
+    page = report.read_text()
+    assert page.startswith("<!DOCTYPE html>") and "SKIP" in page and "--xac1-allow-motion" in page
+    assert "--xac1-fresh" in page
+    assert not status.get("homed"), "nothing may move without --allow-motion"
+
+
+@pytest.fixture(scope="module")
+def deviation_runs(tmp_path_factory):
+    """All deviation runs at once (two at a time), each with its JUnit XML."""
+    base = tmp_path_factory.mktemp("deviations")
+
+    def one(name: str) -> tuple[int, set[str], str]:
+        junit = base / f"{name}.xml"
+        r = conformance(["--port", f"xac1sim://?time_scale=0&deviation={name}", "--junitxml", str(junit),
+                         *FAST], base)
+        return r.returncode, failed_checks(junit) if junit.exists() else set(), r.stdout[-2000:]
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        return dict(zip(EXPECTED, pool.map(one, EXPECTED), strict=True))
+
+
+def test_every_deviation_is_listed():
+    """The deviation table here covers every deviation the simulator offers."""
+    assert set(EXPECTED) == set(DEVIATIONS)
+
+
+@pytest.mark.parametrize("deviation", sorted(EXPECTED))
+def test_deviation_fails_the_right_check(deviation_runs, deviation):
+    """With one stated rule broken ({deviation}), the suite exits 1 and the check of that rule fails."""
+    code, failed, out = deviation_runs[deviation]
+    assert code == 1, out
+    want = EXPECTED[deviation]
+    assert any(name == want or name.startswith(want + "[") for name in failed), (want, sorted(failed), out)
+
+
+def test_other_silent_choices_still_pass_over_tcp(tmp_path):
+    """Against `socket://` with other choices on every silent point (PROTOCOL.md "Where the vendor text is
+    silent"), the suite still passes; afterwards the points and OUT ports are as they were."""
+    with serve_tcp(OTHER_CHOICES) as sim:
+        before = read_table(sim.url)
+        r = conformance(["--port", sim.url, "--allow-motion", "--safe-range", "0:0x1000", "--fresh", *FAST],
+                        tmp_path)
+        after = read_table(sim.url)
+    assert r.returncode == 0, r.stdout[-4000:]
+    assert "skipped" not in r.stdout.splitlines()[-1] or "estop" in r.stdout
+    assert after == before
+    assert "restored" in r.stdout
+
+
+def test_ctrl_c_restores_the_device(tmp_path):
+    """Ctrl-C in the middle of the run still restores and verifies every point and the OUT ports."""
+    with serve_tcp(OTHER_CHOICES) as sim:
+        before, initial = read_table(sim.url), model_points(sim)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "xac1_proto", "conformance", "--port", sim.url, "--allow-motion",
+             "--safe-range", "0:0x1000", "--examples", "100000", "-k", "read_back or random"],
+            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and model_points(sim) == initial:
+                time.sleep(0.1)
+            time.sleep(0.5)
+            os.kill(proc.pid, signal.SIGINT)
+            out, _ = proc.communicate(timeout=RUN_TIMEOUT)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=10)
+        after = read_table(sim.url)
+    assert proc.returncode != 0
+    assert "restoring" in out, out[-3000:]
+    assert after == before, out[-3000:]
+
+
+def model_points(sim) -> dict:
+    """The simulator's point table, read from the model (the line belongs to the run under test)."""
+    with sim.lock:
+        return sim.model.status()["points"]
