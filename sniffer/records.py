@@ -10,7 +10,6 @@ builds them and the views print them.
 from __future__ import annotations
 
 import json
-import statistics
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -134,6 +133,36 @@ class TimeoutRecord:
 Record = FrameRecord | JunkRecord | TimeoutRecord
 
 
+_MAX_WAITING = 4096  # commands the tally remembers while they wait for an answer
+
+
+@dataclass
+class LatencyStats:
+    """Count, min, median and max of latencies in bounded memory: a histogram of whole microseconds (the
+    summary shows 1 us, so the median is exact), whose size grows with distinct values, not answers."""
+
+    n: int = 0
+    _us: Counter[int] = field(default_factory=Counter)
+
+    def add(self, seconds: float) -> None:
+        self.n += 1
+        self._us[round(seconds * 1e6)] += 1
+
+    def _nth(self, k: int, keys: list[int]) -> int:
+        """The k-th smallest value (0-based), in microseconds."""
+        seen = 0
+        for key in keys:
+            seen += self._us[key]
+            if seen > k:
+                return key
+        raise IndexError(k)
+
+    def stats_ms(self) -> dict[str, float | int]:
+        keys = sorted(self._us)
+        mid = (self._nth((self.n - 1) // 2, keys) + self._nth(self.n // 2, keys)) / 2
+        return {"n": self.n, "min": keys[0] / 1000, "median": round(mid / 1000, 3), "max": keys[-1] / 1000}
+
+
 @dataclass
 class Tally:
     """Counts records as they go by; ``summary()`` is the schema's last line."""
@@ -144,7 +173,7 @@ class Tally:
     violations: Counter[str] = field(default_factory=Counter)
     commands: Counter[str] = field(default_factory=Counter)  # host frames by header ("?" unknown)
     answers: Counter[str] = field(default_factory=Counter)  # device frames by header
-    latencies: dict[str, list[float]] = field(default_factory=dict)  # command header -> seconds
+    latencies: dict[str, LatencyStats] = field(default_factory=dict)  # by command header
     line_errors: int = 0  # frame and junk records carrying a line error
     unanswered: int = 0  # commands still waiting at the end with no verdict (capture cut short)
     _headers: dict[int, str] = field(default_factory=dict)  # host frame i -> header
@@ -159,11 +188,13 @@ class Tally:
             if record.dir == "host":
                 self.commands[header] += 1
                 self._headers[record.i] = header
+                if len(self._headers) > _MAX_WAITING:  # commands never answered: forget the oldest
+                    del self._headers[next(iter(self._headers))]
             else:
                 self.answers[header] += 1
                 command = self._headers.pop(record.reply_to, "?") if record.reply_to is not None else "?"
                 if record.reply_to is not None and record.latency_s is not None:  # a command is answered once
-                    self.latencies.setdefault(command, []).append(record.latency_s)
+                    self.latencies.setdefault(command, LatencyStats()).add(record.latency_s)
         elif isinstance(record, JunkRecord):
             self.junk += 1
             self.bytes[record.dir] += len(record.raw)
@@ -171,12 +202,7 @@ class Tally:
 
     def latency_stats(self) -> dict[str, dict[str, float | int]]:
         """Per command header: count, min, median, max latency in ms."""
-        out: dict[str, dict[str, float | int]] = {}
-        for header in sorted(self.latencies):
-            values = self.latencies[header]
-            out[header] = {"n": len(values), "min": _ms(min(values)) or 0.0,
-                           "median": _ms(statistics.median(values)) or 0.0, "max": _ms(max(values)) or 0.0}
-        return out
+        return {header: self.latencies[header].stats_ms() for header in sorted(self.latencies)}
 
     def summary(self) -> dict[str, Any]:
         ordered = sorted(self.violations.items(), key=lambda kv: list(spec.VIOLATIONS).index(kv[0])

@@ -266,3 +266,20 @@ def test_causal_order_puts_answers_after_their_commands():
     assert len(fed) == 6
     order.due(now=1.2)
     assert len(fed) == 7 and fed[-1].data == b"0RV100\r\n"
+
+
+@given(st.lists(st.floats(0, 30, allow_nan=False), min_size=1, max_size=60))
+def test_latency_stats_match_exact_statistics_to_the_microsecond(values):
+    """The summary's latency min/median/max (bounded memory) equal the exact ones at 1 us resolution."""
+    import statistics
+
+    from sniffer.records import LatencyStats
+
+    stats = LatencyStats()
+    for v in values:
+        stats.add(v)
+    us = [round(v * 1e6) for v in values]
+    got = stats.stats_ms()
+    assert got["n"] == len(values)
+    assert got["min"] == min(us) / 1000 and got["max"] == max(us) / 1000
+    assert got["median"] == round(statistics.median(us) / 1000, 3)
