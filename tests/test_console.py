@@ -118,3 +118,35 @@ def test_console_bad_port_is_a_clear_error():
     r = subprocess.run([sys.executable, "-m", "xac1_proto", "console", "--port", "xac1sim://?bogus=1"],
                        input="", capture_output=True, text=True, timeout=30)
     assert r.returncode == 4 and "cannot open" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_history_file_survives_sessions_and_ctrl_c_clears_the_line(tmp_path):
+    """--history FILE keeps typed lines across sessions (up arrow recalls them); Ctrl-C at the prompt
+    drops the line being typed and keeps the console running; Ctrl-D leaves with status 0."""
+    history = tmp_path / "history"
+    child = spawn_console("--history", str(history))
+    try:
+        child.expect_exact("xac1>")
+        child.send("version\r")
+        child.expect_exact("0RV answer")
+        child.expect_exact("xac1>")
+        child.send("read 2")
+        child.sendintr()  # Ctrl-C: the typed line is dropped, not sent
+        child.expect_exact("xac1>")
+        child.send("quit\r")
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    assert child.exitstatus == 0
+    assert "version" in history.read_text() and "read 2" not in history.read_text()
+    child = spawn_console("--history", str(history))
+    try:
+        child.expect_exact("xac1>")
+        child.send("\x1b[A\x1b[A\r")  # up arrow twice: 'quit', then 'version' of the previous session
+        child.expect_exact("0RV answer")
+        child.expect_exact("xac1>")
+        child.sendeof()  # Ctrl-D
+        child.expect(pexpect.EOF)
+    finally:
+        child.close(force=True)
+    assert child.exitstatus == 0
