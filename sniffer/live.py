@@ -4,9 +4,10 @@
 system clock is set. ``Session`` takes each chunk as it is seen: writes it to the recording first (so a
 crash loses nothing), feeds the analyzer and prints the records; ``close()`` flushes, prints the
 summary and closes the recording. ``sniff`` is the tap loop: ``select`` over the two receive-only taps,
-chunks put back in cause-and-effect order (``order.CausalOrder``: two taps deliver with
-different delays), a tick every ``TICK_S`` for missed answers, and a clear message when a tap goes away (with
-``reconnect``: retried every ``RETRY_S`` while the other tap goes on).
+chunks put back in cause-and-effect order (``order.CausalOrder``: two taps deliver with different
+delays) and judged at the time their poll began (a slow sniffer sees late, never out of order), a
+tick every ``TICK_S`` for missed answers, framing-error marks kept (``Chunk.error``), and a clear
+message when a tap goes away (with ``reconnect``: retried every ``RETRY_S`` while the other tap goes on).
 """
 
 from __future__ import annotations
@@ -109,6 +110,7 @@ def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: 
                         lambda: session.analyzer.expecting_answer)
     if started is not None:
         started.set()
+    say(f"sniff: host tap {paths.get('host')}, device tap {paths.get('device')}; Ctrl-C to stop")
     try:
         while not stop.is_set():
             for d, port in ports.items():
@@ -119,28 +121,29 @@ def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: 
                     except PortGone:
                         retry_at[d] = time.monotonic() + RETRY_S
             live = {p.fileno(): (d, p) for d, p in ports.items() if p is not None}
+            # Everything a tap held when this poll began is read by it: held chunks and missed answers
+            # are judged at that time, so a sniffer slowed down (a busy machine) invents nothing.
+            polled, polled_mono = clock.now(), time.monotonic()
             ready = select.select(list(live), [], [], TICK_S)[0] if live else (time.sleep(TICK_S) or [])
-            got: list[tuple[Direction, bytes]] = []
+            now = clock.now()
+            got: list[Chunk] = []
+            gone = False
             for fd in ready:
                 d, port = live[fd]
                 try:
-                    data = port.read()
+                    got += [Chunk(now, d, data, error) for data, error in port.read()]
                 except PortGone as exc:
                     port.close()
                     say(f"error: {exc}; everything seen so far is kept"
                         + (f"; waiting for it to come back (every {RETRY_S} s)" if reconnect else ""))
-                    if not reconnect:
-                        return 1
                     ports[d] = None
                     retry_at[d] = time.monotonic() + RETRY_S
-                    continue
-                if data:
-                    got.append((d, data))
-            now = clock.now()
-            for d, data in got:
-                order.push(Chunk(now, d, data), time.monotonic())
-            order.due(time.monotonic())
-            session.tick(clock.now())
+                    gone = True
+            order.push_poll(got, time.monotonic())
+            if gone and not reconnect:
+                return 1
+            order.due(polled_mono)
+            session.tick(polled)
         return 0
     finally:
         order.flush()

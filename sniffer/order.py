@@ -7,16 +7,20 @@ An answer can only follow its command, so a chunk that would look out of order i
 host bytes while a command waits (they would overlap, or come during a move) or while a malformed
 line sent less than ``window`` ago waits (its alarm answer may still be on the way). Whenever the other tap
 delivers, that goes first and the held chunks follow as soon as they no longer look out of order; when
-the window passes they go out as they are. A true overlap closer than ``window`` to its answer is then
-not seen: the sniffer prefers missing one to inventing one. Times only move forward.
+the window passes they go out as they are. When one poll reads both taps (a sniffer that fell behind
+finds several exchanges waiting on each), both sides are cut into lines and merged: an answer goes
+first whenever something waits for it, else the next host line. A true overlap closer than ``window``
+(or than one poll) to its answer is then not seen: the sniffer prefers missing one to inventing one.
+Times only move forward.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Iterable
 from dataclasses import replace
 
-from .chunk import HOST, Chunk
+from .chunk import DEVICE, HOST, Chunk, Direction
 
 REORDER_WINDOW_S = 0.1
 
@@ -53,15 +57,28 @@ class CausalOrder:
 
     def push(self, chunk: Chunk, now: float) -> None:
         """A chunk just read. Device chunks are cut after each LF, so each answer is placed on its own;
-        host chunks stay whole (commands read together were sent before any answer to them was read)."""
-        if chunk.dir == HOST:
-            self._push(chunk, now)
+        host chunks stay whole (commands read together, with no answer read beside them, were sent
+        before any answer to them was read)."""
+        for piece in (_lines(chunk) if chunk.dir != HOST else [chunk]):
+            self._push(piece, now)
+
+    def push_poll(self, chunks: Iterable[Chunk], now: float) -> None:
+        """The chunks one poll read, in the order read; see the module docstring."""
+        chunks = list(chunks)
+        if len({c.dir for c in chunks}) < 2:
+            for chunk in chunks:
+                self.push(chunk, now)
             return
-        data = chunk.data
-        while data:
-            cut = data.find(b"\n") + 1 or len(data)
-            self._push(replace(chunk, data=data[:cut]), now)
-            data = data[cut:]
+        lines: dict[Direction, deque[Chunk]] = {HOST: deque(), DEVICE: deque()}
+        for chunk in self._held + chunks:  # what was held came first
+            lines[chunk.dir].extend(_lines(chunk))
+        self._held = []
+        while lines[HOST] and lines[DEVICE]:
+            side: Direction = DEVICE if not self._suspicious(lines[DEVICE][0], now) else HOST
+            self._out(lines[side].popleft(), now)
+        for rest in lines.values():
+            for chunk in rest:
+                self._push(chunk, now)
 
     def _push(self, chunk: Chunk, now: float) -> None:
         if self._held and chunk.dir == self._held[0].dir:
@@ -83,3 +100,13 @@ class CausalOrder:
         held, self._held = self._held, []
         for chunk in held:
             self._out(chunk, now)
+
+
+def _lines(chunk: Chunk) -> list[Chunk]:
+    """``chunk`` cut after each LF."""
+    out, data = [], chunk.data
+    while data:
+        cut = data.find(b"\n") + 1 or len(data)
+        out.append(replace(chunk, data=data[:cut]))
+        data = data[cut:]
+    return out

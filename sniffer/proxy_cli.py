@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
 
     from .live import Clock
     from .proxy import Proxy, PtyHost, TcpHost
-    from .sniff_cli import make_session
+    from .sniff_cli import make_session, stop_on_signals
     from .taps import PortGone
 
     if args.link and not args.pty:
@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
                  if isinstance(host, PtyHost) else f"tcp {host.address[0]}:{host.address[1]}")
         print(f"proxy: host side on {where}; device {args.device}; Ctrl-C to stop", file=sys.stderr,
               flush=True)
-        code = proxy.run()
+        code = proxy.run(stop_on_signals())
     except KeyboardInterrupt:
         code = 0
     finally:

@@ -56,6 +56,18 @@ def make_session(args: argparse.Namespace, source: str):  # -> live.Session (imp
     return Session(analyzer, make_view(args.format, sys.stdout, args.color), recorder)
 
 
+def stop_on_signals():  # -> threading.Event (import kept lazy)
+    """An event set by Ctrl-C (SIGINT) or SIGTERM: the loop then ends between two polls, so the last
+    chunk is recorded and analysed whole before the summary."""
+    import signal
+    import threading
+
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    return stop
+
+
 def run(args: argparse.Namespace) -> int:
     import sys
     import threading
@@ -70,10 +82,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     clock = Clock()
     started = threading.Event()
+    stop = stop_on_signals()
     code = 0
     try:
         code = sniff({"host": args.host_tap, "device": args.device_tap}, session, clock, baud=args.baud,
-                     reconnect=args.reconnect, started=started, err=sys.stderr)
+                     reconnect=args.reconnect, stop=stop, started=started, err=sys.stderr)
     except PortGone as exc:  # a tap that cannot be opened at the start
         print(f"error: {exc}", file=sys.stderr)
         code = 1

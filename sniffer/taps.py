@@ -1,9 +1,10 @@
 """Receive-only serial ports for a Y-cable tap: opened read-only, and nothing here can write to them.
 
 A tap port is opened with ``O_RDONLY`` (so even a stray ``os.write`` on its descriptor fails with
-EBADF) and set raw at the line's speed; ``ReadOnlyPort.write`` raises ``TapWriteError``. ``read()``
-returns what is there (``b""`` when nothing is); an unplugged port raises ``PortGone`` with a message
-for people.
+EBADF) and set raw at the line's speed, with ``PARMRK`` on so that bytes received with a framing error
+are marked by the kernel (``linemarks``); ``ReadOnlyPort.write`` raises ``TapWriteError``. ``read()``
+returns what is there as ``(bytes, error or None)`` pieces (none when nothing is); an unplugged port
+raises ``PortGone`` with a message for people.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ import termios
 import tty
 
 from xac1_proto import XAC1Error, spec
+
+from .linemarks import MarkDecoder
 
 _BAUDS = {b: getattr(termios, f"B{b}") for b in (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)}
 
@@ -32,17 +35,22 @@ class PortGone(XAC1Error):
         self.reason = reason
 
 
-def configure_raw(fd: int, baud: int) -> None:
-    """Raw bytes at ``baud`` 8N1 with the receiver on (a terminal only; other files are left alone)."""
+def configure_raw(fd: int, baud: int, mark_errors: bool = False) -> bool:
+    """Raw bytes at ``baud`` 8N1 with the receiver on (a terminal only: False for other files, which are
+    left alone). ``mark_errors``: bytes with a framing error come marked (``PARMRK``, see linemarks)."""
     if not os.isatty(fd):
-        return
+        return False
     if baud not in _BAUDS:
         raise ValueError(f"baud must be one of {', '.join(map(str, _BAUDS))}, got {baud}")
     tty.setraw(fd)
     attrs = termios.tcgetattr(fd)
     attrs[2] |= termios.CLOCAL | termios.CREAD
     attrs[4] = attrs[5] = _BAUDS[baud]
+    if mark_errors:
+        attrs[0] |= termios.INPCK | termios.PARMRK
+        attrs[0] &= ~(termios.IGNPAR | termios.IGNBRK | termios.BRKINT | termios.ISTRIP)
     termios.tcsetattr(fd, termios.TCSANOW, attrs)
+    return True
 
 
 class ReadOnlyPort:
@@ -56,7 +64,7 @@ class ReadOnlyPort:
         except OSError as exc:
             raise PortGone(name, path, f"cannot open for reading: {exc.strerror}") from None
         try:
-            configure_raw(self.fd, baud)
+            self._marks = MarkDecoder() if configure_raw(self.fd, baud, mark_errors=True) else None
         except (OSError, termios.error) as exc:
             self.close()
             raise PortGone(name, path, f"cannot set {baud} baud raw mode: {exc}") from None
@@ -66,19 +74,20 @@ class ReadOnlyPort:
             raise ValueError(f"{self.name} tap {self.path} is closed")
         return self.fd
 
-    def read(self, size: int = 4096) -> bytes:
-        """The bytes waiting (maybe none). Raises ``PortGone`` when the port went away."""
+    def read(self, size: int = 4096) -> list[tuple[bytes, str | None]]:
+        """The bytes waiting (maybe none) as ``(bytes, error or None)`` pieces, marks undone. Raises
+        ``PortGone`` when the port went away."""
         try:
             data = os.read(self.fileno(), size)
         except BlockingIOError:
-            return b""
+            return []
         except OSError as exc:
             if exc.errno in (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF):
                 raise PortGone(self.name, self.path, f"went away ({exc.strerror}): unplugged?") from None
             raise
         if not data:  # readable with nothing to read: end of file
             raise PortGone(self.name, self.path, "closed by the other end")
-        return data
+        return self._marks.feed(data) if self._marks is not None else [(data, None)]
 
     def write(self, data: bytes) -> int:
         raise TapWriteError(f"{self.name} tap {self.path} is receive-only: the sniffer never writes to a tap")

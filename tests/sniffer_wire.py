@@ -4,6 +4,9 @@
 the device port and the device's bytes back, and mirrors each direction onto its tap pty
 (``tap_paths["host"]``, ``tap_paths["device"]``), as a Y-cable does. Whatever comes back out of a tap
 (something wrote to it) is kept in ``tap_writes``: a receive-only sniffer leaves it empty.
+``links={"host": PATH, ...}``: the taps are reached through symlinks, so that ``unplug(dir)`` (the tap's
+pty goes away, as a USB adapter pulled out) and ``replug(dir)`` (a new pty, the link re-pointed) can
+play an adapter replugged under the same name. ``seen[dir]``: every byte put on the line each way.
 """
 
 from __future__ import annotations
@@ -37,14 +40,19 @@ def _write_all(fd: int, data: bytes) -> None:
 class YCable:
     """See the module docstring. A context manager; ``mirrored[dir]`` counts bytes put on each tap."""
 
-    def __init__(self, device_path: str) -> None:
+    def __init__(self, device_path: str, links: dict[str, str] | None = None) -> None:
         self.host_master, self._host_slave, self.host_path = _raw_pty()
         self.device = os.open(device_path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         configure_raw(self.device, 9600)
-        self._taps = {d: _raw_pty() for d in ("host", "device")}
-        self.tap_paths = {d: t[2] for d, t in self._taps.items()}
+        self._taps: dict[str, tuple[int, int, str]] = {d: _raw_pty() for d in ("host", "device")}
+        self.links = links or {}
+        for d in self.links:
+            self._link(d)
+        self.tap_paths = {d: self.links.get(d, t[2]) for d, t in self._taps.items()}
         self.tap_writes = {d: b"" for d in self._taps}
         self.mirrored = {d: 0 for d in self._taps}
+        self.seen = {d: bytearray() for d in self._taps}
+        self._requests: list[tuple[str, str, threading.Event]] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="y-cable", daemon=True)
         self._thread.start()
@@ -55,22 +63,63 @@ class YCable:
         except (BlockingIOError, OSError):
             return b""
 
+    def _link(self, d: str) -> None:
+        tmp = self.links[d] + ".new"
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        os.symlink(self._taps[d][2], tmp)
+        os.replace(tmp, self.links[d])
+
+    def _change(self, what: str, d: str) -> None:
+        """Runs in the forwarding thread, between two polls."""
+        if what == "unplug":
+            for fd in self._taps.pop(d)[:2]:
+                os.close(fd)
+            if d in self.links:
+                os.unlink(self.links[d])
+        else:
+            self._taps[d] = _raw_pty()
+            if d in self.links:
+                self._link(d)
+
+    def _request(self, what: str, d: str) -> None:
+        done = threading.Event()
+        self._requests.append((what, d, done))
+        assert done.wait(5), f"y-cable: {what} {d} not done"
+
+    def unplug(self, d: str) -> None:
+        """The ``d`` tap's pty goes away (its link too); what passes meanwhile is not mirrored."""
+        self._request("unplug", d)
+
+    def replug(self, d: str) -> None:
+        """A new pty for the ``d`` tap, its link re-pointed to it."""
+        self._request("replug", d)
+
+    def _mirror(self, d: str, data: bytes) -> None:
+        """Counted first, so that once the far end has the bytes ``mirrored`` covers them too."""
+        self.mirrored[d] += len(data)
+        self.seen[d] += data
+        if d in self._taps:
+            _write_all(self._taps[d][0], data)
+
     def _run(self) -> None:
-        tap_masters = {t[0]: d for d, t in self._taps.items()}
-        fds = [self.host_master, self.device, *tap_masters]
         while not self._stop.is_set():
+            while self._requests:
+                what, d, done = self._requests.pop(0)
+                self._change(what, d)
+                done.set()
+            tap_masters = {t[0]: d for d, t in self._taps.items()}
+            fds = [self.host_master, self.device, *tap_masters]
             for fd in select.select(fds, [], [], 0.05)[0]:
                 data = self._read(fd)
                 if not data:
                     continue
                 if fd == self.host_master:
+                    self._mirror("host", data)
                     _write_all(self.device, data)
-                    _write_all(self._taps["host"][0], data)
-                    self.mirrored["host"] += len(data)
                 elif fd == self.device:
+                    self._mirror("device", data)
                     _write_all(self.host_master, data)
-                    _write_all(self._taps["device"][0], data)
-                    self.mirrored["device"] += len(data)
                 else:
                     self.tap_writes[tap_masters[fd]] += data
 
@@ -82,6 +131,9 @@ class YCable:
         for fd in fds:
             with contextlib.suppress(OSError):
                 os.close(fd)
+        for link in self.links.values():
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(link)
 
     def __enter__(self) -> YCable:
         return self

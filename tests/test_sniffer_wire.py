@@ -8,6 +8,7 @@ import contextlib
 import threading
 import time
 from collections import Counter
+from dataclasses import replace
 
 import pytest
 from sniffer_wire import ScriptedHost, YCable
@@ -37,8 +38,13 @@ class Collect:
 
 @contextlib.contextmanager
 def line(config: SimConfig | None = None):
-    """Simulator + Y-cable + sniffer thread on the taps; yields (sim, cable, collected records)."""
-    with serve_pty(config or SimConfig()) as sim, YCable(sim.path) as cable:
+    """Simulator + Y-cable + sniffer thread on the taps; yields (sim, cable, collected records).
+
+    The simulator paces its answers at 9600 baud (``wire_timing``) as a real line does: with answers
+    sent in no time, a host's next command can reach its tap before the answer it reacts to reaches the
+    other tap, and no two-tap sniffer can then tell which came first."""
+    config = replace(config or SimConfig(), wire_timing=True)
+    with serve_pty(config) as sim, YCable(sim.path) as cable:
         view = Collect()
         analyzer = Analyzer()
         session = Session(analyzer, view)
@@ -62,6 +68,9 @@ def line(config: SimConfig | None = None):
             session.close(clock.now())
         assert result["rc"] == 0
         assert cable.tap_writes == {"host": b"", "device": b""}, "something was written to a tap"
+        for d in ("host", "device"):  # every byte accounted for, once (FF too, doubled by PARMRK)
+            assert b"".join(r.raw for r in view.records if getattr(r, "raw", None) is not None
+                            and r.dir == d) == bytes(cable.seen[d])
 
 
 def test_client_session_is_clean():
@@ -95,6 +104,9 @@ def _lower_case(host, sim):
 
 
 def _back_to_back(host, sim):
+    # A device answering 0.2 s after a command: the second command is on the line well before the first
+    # answer (with an answer 0.5 ms after, a busy sniffer reads both taps at once and cannot tell).
+    sim.call(lambda model, now: setattr(model, "slow_turnaround_s", 0.2))
     host.ask(b"0RV\r\n0RS\r\n", answers=2)
 
 
