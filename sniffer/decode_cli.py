@@ -49,10 +49,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--samplerate", type=float, metavar="HZ", default=None,
                    help="sigrok: sample rate turning sample numbers (--protocol-decoder-samplenum) into "
                         "time (default: inferred from the byte lengths at 9600 baud)")
-    p.add_argument("--no-answer-timeout", type=float, metavar="S", default=None,
-                   help="seconds after a command's last byte before no-answer (default: the sniffer's)")
-    p.add_argument("--color", choices=("auto", "always", "never"), default="auto",
-                   help="colour in text output")
+    p.add_argument("--timeout", "--no-answer-timeout", dest="no_answer_timeout", type=float, metavar="S",
+                   default=None, help="no-answer timeout in seconds after a command's last byte; moves get "
+                                      "their estimated time doubled on top (default 1.0, as xac1 sniff)")
+    p.add_argument("--storm-limit", type=int, default=None, metavar="N",
+                   help="communication-error answers in a row after which a command is comm-error-storm "
+                        "(default 5)")
+    p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
+                   help="colour in the text view (default: when the output is a terminal)")
 
 
 def _error(message: str) -> int:
@@ -105,8 +109,10 @@ def _decode(capture: Capture, args: argparse.Namespace) -> int:
     options: dict[str, Any] = {}
     if args.no_answer_timeout is not None:
         options["no_answer_timeout"] = args.no_answer_timeout
+    if args.storm_limit is not None:
+        options["storm_limit"] = args.storm_limit
     analyzer = Analyzer(**options)
-    color = {"auto": None, "always": True, "never": False}[args.color]
+    color = args.color
     view = make_view("text" if args.format == "summary" else args.format, sys.stdout, color)
     show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
     progress = _Progress(capture) if sys.stderr.isatty() and capture.size >= PROGRESS_MIN_BYTES else None
