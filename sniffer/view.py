@@ -130,8 +130,10 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
         lines.append("  command  frames  latency ms min / median / max")
         for header, count in commands.items():
             stats = latency.get(header)
-            shown = (f"{stats['min']:.1f} / {stats['median']:.1f} / {stats['max']:.1f} ({stats['n']} answer{'s' if stats['n'] != 1 else ''})"
-                     if stats else "-")
+            shown = "-"
+            if stats:
+                plural = "answer" if stats["n"] == 1 else "answers"
+                shown = f"{stats['min']:.1f} / {stats['median']:.1f} / {stats['max']:.1f} ({stats['n']} {plural})"
             lines.append(f"  {escape(header):<7}  {count:>6}  {shown}")
     violations = summary.get("violations", {})
     if not violations:
