@@ -133,7 +133,8 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
             shown = "-"
             if stats:
                 plural = "answer" if stats["n"] == 1 else "answers"
-                shown = f"{stats['min']:.1f} / {stats['median']:.1f} / {stats['max']:.1f} ({stats['n']} {plural})"
+                spread = f"{stats['min']:.1f} / {stats['median']:.1f} / {stats['max']:.1f}"
+                shown = f"{spread} ({stats['n']} {plural})"
             lines.append(f"  {escape(header):<7}  {count:>6}  {shown}")
     violations = summary.get("violations", {})
     if not violations:
