@@ -124,7 +124,11 @@ def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: 
             # Everything a tap held when this poll began is read by it: held chunks and missed answers
             # are judged at that time, so a sniffer slowed down (a busy machine) invents nothing.
             polled, polled_mono = clock.now(), time.monotonic()
-            ready = select.select(list(live), [], [], TICK_S)[0] if live else (time.sleep(TICK_S) or [])
+            if live:
+                ready = select.select(list(live), [], [], TICK_S)[0]
+            else:
+                time.sleep(TICK_S)
+                ready = []
             now = clock.now()
             got: list[Chunk] = []
             gone = False

@@ -78,7 +78,8 @@ def judge_answer(sent: bytes, raw: bytes, junk: bytes = b"") -> tuple[Frame | No
     if command.header in _N_ANSWERED and getattr(frame, "n", None) != getattr(command, "n", None):
         at = command.spec().offsets()["n"]
         out.append(Violation("answer-mismatch", at, f"{frame.header} answer: byte {at}: expected N="
-                                                    f"{command.n:X} (the command's), got N={frame.n:X} "
+                                                    f"{getattr(command, 'n', 0):X} (the command's), got N="
+                                                    f"{getattr(frame, 'n', 0):X} "
                                                     f"(answer-mismatch)"))
     if frame.spec().echo and raw != sent:
         at = next((i for i, (a, b) in enumerate(zip(raw, sent, strict=False)) if a != b),

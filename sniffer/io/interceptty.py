@@ -36,7 +36,8 @@ _CHAR_NAMES: Final = {f"[{n}]": i for i, n in enumerate(_NAMES)} | {"[DEL]": 0x7
 
 def sniff(head: list[str]) -> int:
     rows = [line for line in head if line.strip()]
-    good = [r for r in rows if _LINE.fullmatch(r) and _items(_LINE.fullmatch(r).group(5)) is not None]
+    matches = [_LINE.fullmatch(r) for r in rows]
+    good = [m for m in matches if m is not None and _items(m.group(5)) is not None]
     return 85 if good and len(good) >= max(1, len(rows) * 2 // 3) else 0
 
 

@@ -81,12 +81,14 @@ def detect(paths: list[str]) -> Detection:
         listed = ", ".join(f"{n} ({s})" for n, s in considered) or "none matched"
         different = ""
         if len(paths) > 1:
-            per_file = [max(NAMES, key=lambda n, i=i: totals[n][i]) for i in range(len(paths))]
+            per_file = [max(NAMES, key=lambda n, i=i: totals[n][i])  # type: ignore[misc]
+                        for i in range(len(paths))]
             if len(set(per_file)) > 1:
                 different = " (the files look like different formats: " + ", ".join(
                     f"{p}: {n}" for p, n in zip(paths, per_file, strict=True)) + ")"
         raise FormatError(f"{', '.join(paths)}: cannot tell the capture format{different}; "
                           f"considered: {listed}. Give --input-format, one of: {', '.join(NAMES)}")
+    assert best is not None  # 'alone' or a sure best
     return Detection(best[0], considered)
 
 

@@ -139,8 +139,8 @@ def apply(model: DeviceModel, line: str, t: float) -> tuple[str, list[Output]]:
         return f"extra turnaround {model.slow_turnaround_s * 1000:g} ms", []
     if cmd == "deviation":
         if not args:
-            on = set(model.config.deviations)
-            return "\n".join(f"{'*' if n in on else ' '} {n:28} {rule}"
+            enabled = set(model.config.deviations)
+            return "\n".join(f"{'*' if n in enabled else ' '} {n:28} {rule}"
                              for n, (rule, _) in DEVIATIONS.items()), []
         if len(args) > 2 or (len(args) == 2 and args[1].lower() not in ("on", "off")):
             raise ValueError("usage: deviation [NAME [on|off]]")
