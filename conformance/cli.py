@@ -27,6 +27,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="positions the actuator may be moved to, decimal or 0x-hex, e.g. 0:0x1000")
     p.add_argument("--fresh", action="store_true",
                    help="the device was just powered on and never homed: run the power-on checks first")
+    p.add_argument("--scratch-points", metavar="LIST",
+                   help="points the suite may overwrite even if never written before, e.g. 1,2,F (default on "
+                        "a real device: only points that hold data, which it writes back at the end)")
+    p.add_argument("--restore-mode0", action="store_true",
+                   help="send 0CM0 last: the controller ends in mode 0 (external start inputs enabled again)")
     p.add_argument("--report", metavar="FILE", help="write an acceptance report (.md or .html)")
     p.add_argument("--junitxml", metavar="FILE", help="write JUnit XML results")
     p.add_argument("--seed", metavar="N", type=int, help="seed of the random command sequences (default 0)")
@@ -51,14 +56,17 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
     for flag, value in (("--xac1-port", args.port), ("--xac1-safe-range", args.safe_range),
                         ("--xac1-report", args.report), ("--junitxml", args.junitxml),
                         ("--xac1-seed", args.seed), ("--xac1-examples", args.examples),
-                        ("--xac1-timeout", args.timeout), ("-k", args.select)):
+                        ("--xac1-timeout", args.timeout), ("--xac1-scratch-points", args.scratch_points),
+                        ("-k", args.select)):
         if value is not None:
             out += [flag, str(value)]
     if args.allow_motion:
         out.append("--xac1-allow-motion")
     if args.fresh:
         out.append("--xac1-fresh")
-    return out
+    if args.restore_mode0:
+        out.append("--xac1-restore-mode0")
+    return out + ["--xac1-cli"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -71,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         Settings.make(args.port, args.allow_motion, args.fresh, args.safe_range, args.seed, args.examples,
-                      args.timeout)
+                      args.timeout, args.scratch_points, args.restore_mode0, cli=True)
     except SettingsError as exc:
         print(f"xac1 conformance: {str(exc).replace('--xac1-', '--')}", file=sys.stderr)
         return 2
@@ -80,4 +88,20 @@ def run(args: argparse.Namespace) -> int:
         return 2
     import pytest
 
-    return int(pytest.main(pytest_args(args)))
+    from .plugin import RUN_KEY
+
+    class LastWord:
+        """Keeps the run's verdict line, printed after pytest's own counts (which include information
+        records and so differ from the suite's)."""
+
+        verdict: str | None = None
+
+        def pytest_unconfigure(self, config: pytest.Config) -> None:
+            run = config.stash.get(RUN_KEY, None)
+            self.verdict = run.verdict_line if run is not None else None
+
+    last = LastWord()
+    status = int(pytest.main(pytest_args(args), plugins=[last]))
+    if last.verdict:
+        print(f"xac1 conformance: {last.verdict} (exit status {status})", flush=True)
+    return status

@@ -37,6 +37,10 @@ class DeviceAbort(Exception):
     """The run cannot go on safely (emergency stop, host duty halt, a device that stopped answering)."""
 
 
+class NoAnswer(DeviceAbort):
+    """The device gave no byte back to a reset and a version request: nothing else can be judged."""
+
+
 class MotionRefused(Exception):
     """A move the safety rules forbid; nothing was sent. The message says why."""
 
@@ -87,14 +91,14 @@ class DeviceUnderTest:
         try:
             ex = self.client.transact(raw, timeout=timeout)
         except ResponseTimeout as exc:
-            p = Probe(self.test, raw, b"", None, [], None, timed_out=True, partial=exc.partial)
+            p = Probe.silence(self.test, raw, exc.partial)
             self.latched = None
             self.budget.observe(command, None, False)
         except CommunicationHalted as exc:
             raise DeviceAbort(f"the client stopped sending after repeated communication errors "
                               f"(the vendor's host duty): {exc}") from exc
         else:
-            p = Probe(self.test, raw, ex.raw, ex.frame, list(ex.violations), ex.latency, junk=ex.junk)
+            p = Probe(self.test, ex)
             self._learn(command, p)
         self.log.append(p)
         return p
@@ -122,7 +126,8 @@ class DeviceUnderTest:
             return
         s = self.settings
         if not s.motion:
-            raise MotionRefused("motion not allowed: pass --xac1-allow-motion and --xac1-safe-range LO:HI")
+            raise MotionRefused(f"motion not allowed: pass {s.flag('allow-motion')} and "
+                                f"{s.flag('safe-range')} LO:HI")
         if s.simulator:
             return  # nothing to damage: the suite may probe any target, even beyond the stroke
         if not isinstance(command, (MovePoint, MoveDirect)):
@@ -156,12 +161,25 @@ class DeviceUnderTest:
             raise DeviceAbort("emergency stop is active (alarm 0E): 0%C cannot clear it. Release the "
                               "emergency stop input, then run again")
         check = self.send(ReadVersion())
+        if reset.timed_out and check.timed_out and not (reset.partial or check.partial):
+            raise NoAnswer(self._silence())
         if check.frame is None or check.alarm is not None:
             raise DeviceAbort(f"after an alarm reset the device still gives {describe_answer(check)} "
                               f"({check.show()}): the run cannot go on")
         # A non-alarm answer ends the run of communication errors (PROTOCOL.md host duty), even when it
         # breaks a framing rule: that is for the checks to judge, not a reason to stop talking.
         self.client.rearm()
+
+    def _silence(self) -> str:
+        heard = sum(1 for p in self.log if p.raw or p.partial)
+        wait = f"{self.settings.timeout:g} s"
+        if not heard:
+            return (f"no answer from the device on {self.settings.port}: neither 0%C nor 0RV got a single "
+                    f"byte back within {wait}. Check that the controller is powered, the cable is plugged "
+                    f"in, the port is the right one and the line is 9600 baud 8N1 (a slow device may need "
+                    f"{self.settings.flag('timeout')} S)")
+        return (f"the device stopped answering: after {heard} answers, neither 0%C nor 0RV got a byte "
+                f"back within {wait}. Check the power, the cable and the emergency stop")
 
     # ---- positions ----
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from xac1_proto import spec
 from xac1_proto.errors import Violation
+from xac1_proto.exchange import Exchange
 from xac1_proto.frames import AlarmAnswer, Frame
 
 _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
@@ -22,29 +23,57 @@ def wire(data: bytes) -> str:
                    for b in data)
 
 
-@dataclass
+@dataclass(eq=False)
 class Probe:
-    """One command and its answer. ``raw`` is b"" and ``timed_out`` True when nothing complete came."""
+    """One command and its answer: the client's ``Exchange`` plus what the suite adds (the check that
+    sent it, silence, notes). A probe that timed out holds an exchange with ``raw`` b"" and no frame,
+    and keeps the bytes that did come in ``partial``. Probes compare by identity: two identical
+    exchanges are two pieces of evidence."""
 
     test: str | None
-    sent: bytes
-    raw: bytes
-    frame: Frame | None
-    violations: list[Violation]
-    latency: float | None
+    exchange: Exchange
     timed_out: bool = False
-    junk: bytes = b""
     partial: bytes = b""
     notes: list[str] = field(default_factory=list)
+
+    @classmethod
+    def silence(cls, test: str | None, sent: bytes, partial: bytes = b"") -> Probe:
+        """A command that got no frame-shaped answer within the timeout."""
+        return cls(test, Exchange(sent=sent, raw=b"", frame=None, violations=[], latency=None),
+                   timed_out=True, partial=partial)
+
+    @property
+    def sent(self) -> bytes:
+        return self.exchange.sent
+
+    @property
+    def raw(self) -> bytes:
+        return self.exchange.raw
+
+    @property
+    def frame(self) -> Frame | None:
+        return self.exchange.frame
+
+    @property
+    def violations(self) -> list[Violation]:
+        return self.exchange.violations
+
+    @property
+    def latency(self) -> float | None:
+        return self.exchange.latency
+
+    @property
+    def junk(self) -> bytes:
+        return self.exchange.junk
 
     @property
     def errors(self) -> list[Violation]:
         """Violations that break a stated rule (notices such as ``lowercase-hex`` left out)."""
-        return [v for v in self.violations if v.code not in spec.NOTICES]
+        return self.exchange.errors
 
     @property
     def alarm(self) -> AlarmAnswer | None:
-        return self.frame if isinstance(self.frame, AlarmAnswer) else None
+        return self.exchange.alarm
 
     @property
     def normal(self) -> bool:

@@ -58,23 +58,47 @@ def two_offset(header: str) -> int:
     raise ValueError(f"{header} answers carry no 2")
 
 
+class NotEnoughPoints(Exception):
+    """A check needs more points the suite may write than this run has; the message says what to pass."""
+
+
 class Kit:
     """Shared per run: which points to write, safe positions, and sample exchanges per command kind."""
 
     def __init__(self, dut: DeviceUnderTest, snapshot: Snapshot) -> None:
         self.dut = dut
         self.snapshot = snapshot
-        self.scratch = snapshot.scratch_order()
+        s = dut.settings
+        self.scratch = snapshot.scratch_order(s.scratch_points, anything=s.simulator)
         self.samples: dict[str, Probe] = {}
 
     def point(self, k: int = 0) -> int:
-        """The k-th point the suite may write (restorable ones first)."""
-        return self.scratch[k % len(self.scratch)]
+        """The k-th distinct point the suite may write: those named with --xac1-scratch-points, then those
+        that held data (restored at the end); on the built-in simulator any point. ``NotEnoughPoints``
+        when the run has fewer than k + 1."""
+        if k >= len(self.scratch):
+            raise NotEnoughPoints(self._shortage(k + 1))
+        return self.scratch[k]
+
+    def _shortage(self, need: int) -> str:
+        have = self.scratch
+        flag = self.dut.settings.flag("scratch-points")
+        named = set(self.dut.settings.scratch_points)
+        spare = [n for n in self.snapshot.never_written if n not in named]
+        offer = sorted(named | set(spare[: need - len(have)]))
+        listed = ", ".join(f"{n:X}" for n in have) or "none"
+        why = ("named with " + flag + (" or " if len(have) > len(named) else "")) if named else ""
+        why += "held data, written back at the end" if len(have) > len(named) or not named else ""
+        return (f"needs {need} points the suite may overwrite, this run has {len(have)} ({listed}: {why}). "
+                f"The {len(spare)} never-written points are left alone: the protocol cannot make a point "
+                f"never-written again. To run this check, let the suite overwrite some: "
+                f"{flag} {','.join(f'{n:X}' for n in offer)}")
 
     def safe_pos(self, k: int = 0) -> int:
-        """A position to store or move to: inside the safe range, or (no motion) the point's own Pos."""
+        """A position to store or move to: inside the safe range, or (no motion) a Pos a point held."""
         if self.dut.settings.safe_range is None:
-            return self.snapshot.points[self.point(k)].pos
+            n = self.scratch[k % len(self.scratch)] if self.scratch else self.point(0)
+            return self.snapshot.points[n].pos
         targets = self.dut.safe_targets(4)
         return targets[k % len(targets)]
 

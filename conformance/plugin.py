@@ -6,13 +6,15 @@ options become a ``Settings`` (bad values stop the run with a usage error), the 
 (power-on checks first, the random-sequence check last) and those the settings forbid are skipped with
 the reason. The first check that needs the device opens it and snapshots the points and OUT ports; every
 check starts with any latched alarm reset. Each check's outcome becomes a ``Result`` with the rule from
-its docstring and the probes as evidence. When the session ends, even after Ctrl-C, the device is
-restored and verified (Ctrl-C is ignored meanwhile), then the summary table and the report file are
-written.
+its docstring and the probes as evidence. A ``DeviceAbort`` (no port, no answer, emergency stop) is no
+verdict on the check that met it: the run stops, the rest count as not run, exit status 3. When the
+session ends, even after Ctrl-C, the device is restored and verified (Ctrl-C is ignored meanwhile), then
+the summary table and the report file are written, whatever stopped the run.
 """
 
 from __future__ import annotations
 
+import argparse
 import datetime as _dt
 import os
 import re
@@ -45,11 +47,16 @@ class Xac1Run:
         self.restored = False
         self.results: list[Any] = []
         self.abort: str | None = None
+        self.no_answer = False  # the abort: the device never answered at all
+        self.total = 0  # checks collected (those never run are counted in the report)
+        self.total_info = 0  # of which information records
+        self.verdict_line: str | None = None  # as printed in the summary (``xac1 conformance`` repeats it)
         self.started = _dt.datetime.now().astimezone()
         self.active = False
 
 
 RUN_KEY = pytest.StashKey[Xac1Run]()
+EXIT_INCOMPLETE = 3  # the run could not go on: no port, no answer, emergency stop...
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -70,11 +77,18 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                 help="seconds to wait for an answer (default 0.5; 0.2 on the built-in simulator)")
     g.addoption("--xac1-report", metavar="FILE", default=None,
                 help="write the acceptance report to FILE (.md for Markdown, .html for HTML)")
+    g.addoption("--xac1-scratch-points", metavar="LIST", default=None,
+                help="points the suite may overwrite even if never written before (e.g. 1,2,F); used "
+                     "first, restored at the end when they held data. Default on a real device: only "
+                     "points that held data (they can be written back)")
+    g.addoption("--xac1-restore-mode0", action="store_true", default=False,
+                help="send 0CM0 last, so the controller ends in mode 0 (external start inputs enabled)")
+    g.addoption("--xac1-cli", action="store_true", default=False, help=argparse.SUPPRESS)
 
 
 def _options_used(config: pytest.Config) -> bool:
     names = ("xac1_port", "xac1_allow_motion", "xac1_fresh", "xac1_safe_range", "xac1_seed",
-             "xac1_examples", "xac1_timeout", "xac1_report")
+             "xac1_examples", "xac1_timeout", "xac1_report", "xac1_scratch_points", "xac1_restore_mode0")
     return any(config.getoption(n) not in (None, False) for n in names)
 
 
@@ -105,7 +119,10 @@ def _activate(run: Xac1Run) -> None:
         run.settings = Settings.make(c.getoption("xac1_port"), c.getoption("xac1_allow_motion"),
                                      c.getoption("xac1_fresh"), c.getoption("xac1_safe_range"),
                                      seed=c.getoption("xac1_seed"), examples=c.getoption("xac1_examples"),
-                                     timeout=c.getoption("xac1_timeout"))
+                                     timeout=c.getoption("xac1_timeout"),
+                                     scratch_points=c.getoption("xac1_scratch_points"),
+                                     restore_mode0=c.getoption("xac1_restore_mode0"),
+                                     cli=c.getoption("xac1_cli"))
     except SettingsError as exc:
         raise pytest.UsageError(str(exc)) from None
     report = c.getoption("xac1_report")
@@ -136,10 +153,20 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
     for item in checks:
         if item.get_closest_marker("xac1_fresh") and not s.fresh:
             item.add_marker(pytest.mark.skip(
-                reason="needs a device just powered on and never homed: pass --xac1-fresh"))
+                reason=f"needs a device just powered on and never homed: pass {s.flag('fresh')}"))
         elif item.get_closest_marker("xac1_motion") and not s.motion:
             item.add_marker(pytest.mark.skip(
-                reason="moves the actuator: pass --xac1-allow-motion --xac1-safe-range LO:HI"))
+                reason=f"moves the actuator: pass {s.flag('allow-motion')} {s.flag('safe-range')} LO:HI"))
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Count the checks that will run (after -k): those the run never reaches are reported as not run."""
+    run = _run(session.config)
+    if run is None or not run.active:
+        return
+    checks = [i for i in session.items if is_check(i)]
+    run.total = len(checks)
+    run.total_info = sum(1 for i in checks if i.get_closest_marker("xac1_info"))
 
 
 # ---- fixtures ----
@@ -157,7 +184,7 @@ def xac1_settings(request: pytest.FixtureRequest) -> Any:
 def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
     """The device under test, opened once; points and OUT ports snapshotted before any write and
     restored when the session ends."""
-    from .dut import DeviceAbort, DeviceUnderTest
+    from .dut import DeviceAbort, DeviceUnderTest, NoAnswer
     from .safety import take_snapshot
 
     run = _run(request.config)
@@ -165,15 +192,15 @@ def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
     try:
         dut = DeviceUnderTest.open(xac1_settings)
     except Exception as exc:  # noqa: BLE001 - a port that does not open ends the run, with the reason
-        run.abort = f"cannot open {xac1_settings.port}: {exc}"
-        pytest.exit(f"xac1: {run.abort}", returncode=3)
+        raise DeviceAbort(f"cannot open {xac1_settings.port}: {exc}") from None
     run.dut = dut
     dut.test = "(session start: snapshot)"
     try:
         run.snapshot = take_snapshot(dut)
+    except NoAnswer:
+        raise
     except DeviceAbort as exc:
-        run.abort = f"cannot take the safety snapshot: {exc}"
-        pytest.exit(f"xac1: {run.abort}; nothing was written", returncode=3)
+        raise DeviceAbort(f"cannot take the safety snapshot: {exc}; nothing was written") from None
     yield dut
     _finish(run)
 
@@ -211,11 +238,14 @@ def pytest_runtest_call(item: pytest.Item) -> Any:
     if not is_check(item):
         return (yield)
     from .dut import MotionRefused
+    from .kit import NotEnoughPoints
 
     try:
         return (yield)
     except MotionRefused as exc:
         pytest.skip(f"not moved: {exc}")
+    except NotEnoughPoints as exc:
+        pytest.skip(str(exc))
 
 
 @pytest.hookimpl(wrapper=True)
@@ -224,12 +254,14 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     run = _run(item.config)
     if run is None or not run.active or not is_check(item):
         return report
-    from .dut import DeviceAbort
+    from .dut import DeviceAbort, NoAnswer
     from .report import result_from
 
     if call.excinfo is not None and call.excinfo.errisinstance(DeviceAbort):
-        run.abort = str(call.excinfo.value)
-        item.session.shouldstop = f"xac1: {run.abort}"
+        run.abort = run.abort or str(call.excinfo.value)
+        run.no_answer = run.no_answer or call.excinfo.errisinstance(NoAnswer)
+        item.session.shouldstop = "xac1: the run cannot go on (the XA-C1 conformance summary above says why)"
+        return report  # not a verdict on this check: the run stopped (the report says why)
     if report.when == "call" or (report.when == "setup" and not report.passed) or (
             report.when == "teardown" and report.failed):
         run.results = [r for r in run.results if r.nodeid != item.nodeid or report.when != "teardown"]
@@ -266,13 +298,21 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     run = _run(session.config)
     if run is None or not run.active:
         return
-    if exitstatus == pytest.ExitCode.INTERRUPTED and not run.abort:
+    ctrl_c = exitstatus == pytest.ExitCode.INTERRUPTED and not run.abort
+    if ctrl_c:
         run.abort = "interrupted (Ctrl-C) before every check ran"
     if run.dut is not None and not run.restored:
-        print("\nxac1: restoring the device's points and OUT ports...", flush=True)
+        if run.snapshot is not None:
+            print("\nxac1: restoring the device's points, OUT ports and position...", flush=True)
         _finish(run)
-    if run.restore_report is not None and run.restore_report.problems and session.exitstatus == 0:
+    failed = any(r.verdict in ("FAIL", "ERROR") and not r.info for r in run.results)
+    restore_failed = run.restore_report is not None and run.restore_report.problems
+    if ctrl_c:
+        pass  # pytest's own status for an interrupted run
+    elif failed or restore_failed:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+    elif run.abort:
+        session.exitstatus = EXIT_INCOMPLETE
     path = session.config.getoption("xac1_report")
     if path:
         from .report import build, write_file
@@ -282,7 +322,7 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
     run = _run(config)
-    if run is None or not run.active or not run.results:
+    if run is None or not run.active or not (run.results or run.abort or run.dut):
         return
     from .report import build, terminal_lines
 
@@ -290,7 +330,9 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
     screen = getattr(getattr(tr, "_tw", None), "fullwidth", 0)
     width = max(screen, int(os.environ.get("COLUMNS", "0") or 0), 130)
     tr.write_sep("=", "XA-C1 conformance")
-    for line, markup in terminal_lines(build(run), width):
+    rep = build(run)
+    run.verdict_line = rep.verdict_line
+    for line, markup in terminal_lines(rep, width):
         tr.write_line(line, **markup)
     path = config.getoption("xac1_report")
     if path:

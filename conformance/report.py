@@ -86,6 +86,14 @@ class Report:
     safety_problems: list[str]
     abort: str | None
     safety_warnings: list[str] = field(default_factory=list)
+    no_answer: bool = False  # the device never answered: nothing could be judged
+    not_run: int = 0  # checks collected but never run (the run stopped early)
+    info_skipped: list[Result] = field(default_factory=list)
+
+    @property
+    def all_skipped(self) -> list[Result]:
+        """Skipped checks of stated rules, then skipped information records."""
+        return self.skipped + self.info_skipped
 
     @property
     def failed(self) -> list[Result]:
@@ -103,11 +111,19 @@ class Report:
     @property
     def verdict_line(self) -> str:
         n = {v: sum(r.verdict == v for r in self.checks) for v in (PASS, FAIL, ERROR, SKIP)}
+        if self.no_answer and not self.failed:
+            return (f"NO ANSWER FROM THE DEVICE: nothing could be checked ({n[PASS]} passed, "
+                    f"{self.not_run} not run)")
         head = "CONFORMS" if self.accepted else "DOES NOT CONFORM"
         if not self.failed and (self.abort or self.safety_problems):
-            head = "INCOMPLETE"
-        return (f"{head}: {n[PASS]} passed, {n[FAIL]} failed, {n[ERROR]} could not run, "
-                f"{n[SKIP]} skipped (of {len(self.checks)} checks of stated rules)")
+            head = "INCOMPLETE" if n[PASS] else "NOT TESTED"
+        parts = [f"{n[PASS]} passed", f"{n[FAIL]} failed"]
+        if n[ERROR]:
+            parts.append(f"{n[ERROR]} broke down (see the details)")
+        parts.append(f"{n[SKIP]} skipped")
+        if self.not_run:
+            parts.append(f"{self.not_run} not run (the run stopped early)")
+        return f"{head}: {', '.join(parts)} (of {len(self.checks) + self.not_run} checks of stated rules)"
 
 
 def build(run: Any) -> Report:
@@ -121,17 +137,24 @@ def build(run: Any) -> Report:
         ("safe range", s.describe_range()),
         ("fresh device", "yes (power-on checks run first)" if s.fresh else "no (power-on checks skipped)"),
         ("random sequences", f"{s.examples} (seed {s.seed if s.seed is not None else 'derandomized'})"),
+        ("points the suite may write", _scratch_text(run)),
         ("kit", f"xac1-proto {__version__}"),
     ]
     checks = [r for r in run.results if not r.info]
     info_errors = [r for r in run.results if r.info and r.verdict in (FAIL, ERROR)]
+    info_skipped = [r for r in run.results if r.info and r.verdict == SKIP]
+    infos_total = getattr(run, "total_info", 0)
+    run_checks = getattr(run, "total", 0) - infos_total
     safety: list[str] = []
     problems: list[str] = []
     if run.snapshot is not None:
-        safety.append(f"Before the first write the suite read all {len(run.snapshot.points)} points "
-                      f"and the OUT ports ({run.snapshot.outputs}).")
+        snap = run.snapshot
+        safety.append(f"Before the first write the suite read all {len(snap.points)} points, the OUT ports "
+                      f"({snap.outputs}) and the position ({snap.position_seen}).")
     elif dut is None:
-        safety.append("The device was not opened.")
+        safety.append("The device was not opened: nothing was sent to it.")
+    else:
+        safety.append("The run stopped before the safety snapshot: nothing was written to the device.")
     rr = run.restore_report
     warnings: list[str] = []
     if rr is not None:
@@ -145,7 +168,20 @@ def build(run: Any) -> Report:
         date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=options, checks=checks,
         infos=list(dut.infos) if dut is not None else [], info_errors=info_errors,
         timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
-        abort=run.abort, safety_warnings=warnings)
+        abort=run.abort, safety_warnings=warnings, no_answer=getattr(run, "no_answer", False),
+        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped)
+
+
+def _scratch_text(run: Any) -> str:
+    s, snap = run.settings, run.snapshot
+    named = ", ".join(f"{n:X}" for n in s.scratch_points)
+    head = f"named with {s.flag('scratch-points')}: {named}; " if named else ""
+    if s.simulator:
+        return head + "any point (the built-in simulator)"
+    if snap is None:
+        return head + "the points that held data (not read: the run stopped first)"
+    held = ", ".join(f"{n:X}" for n in sorted(snap.points) if snap.points[n].restorable) or "none"
+    return head + f"the points that held data ({held}); never-written points are left alone"
 
 
 # ---- terminal ----
@@ -168,12 +204,12 @@ def terminal_lines(rep: Report, width: int = 110) -> list[tuple[str, dict[str, b
     w_check = min(40, max((len(r.check) for r in rep.checks), default=10))
     w_rule = max(30, (width - w_check - 9) * 2 // 5)
     w_ev = max(20, width - w_check - w_rule - 9)
-    out: list[tuple[str, dict[str, bool]]] = [
-        (f"device {rep.version} on {rep.port}  |  {rep.date}", {}),
-        (f"{'check':<{w_check}} {'verdict':<6} {'rule':<{w_rule}} evidence (sent -> received)",
-         {"bold": True}),
-    ]
-    for r in rep.checks:
+    out: list[tuple[str, dict[str, bool]]] = [(f"device {rep.version} on {rep.port}  |  {rep.date}", {})]
+    ran = [r for r in rep.checks if r.verdict != SKIP]
+    if ran or not rep.abort:
+        out.append((f"{'check':<{w_check}} {'verdict':<6} {'rule':<{w_rule}} evidence (sent -> received)",
+                    {"bold": True}))
+    for r in rep.checks if ran or not rep.abort else []:
         line = (f"{_cut(r.check, w_check):<{w_check}} {r.verdict:<6} {_cut(r.rule, w_rule):<{w_rule}} "
                 f"{_cut(_evidence_short(r), w_ev)}")
         out.append((line, colour[r.verdict]))
@@ -183,6 +219,15 @@ def terminal_lines(rep: Report, width: int = 110) -> list[tuple[str, dict[str, b
         out.append((f"  {r.message}", {}))
         for p in r.probes[:6]:
             out.append((f"    {p.show()}", {}))
+    reasons: dict[str, list[str]] = {}
+    for r in rep.all_skipped:
+        reasons.setdefault(r.message, []).append(r.check + (" (information)" if r.info else ""))
+    if reasons:
+        out.append(("", {}))
+        out.append(("skipped checks (never a failure; to run them):", {"bold": True}))
+        for why, names in reasons.items():
+            out.append((f"  {why}", {"yellow": True}))
+            out.append((f"    {', '.join(names)}", {}))
     if rep.infos:
         out.append(("", {}))
         out.append(("information (PROTOCOL.md is silent here; never a failure):", {"bold": True}))
@@ -222,8 +267,8 @@ def markdown(rep: Report) -> str:
     o += ["This report says whether the controller follows every rule the XA-C1 protocol states "
           "(PROTOCOL.md, a restatement of the vendor's text). Each check below names the rule, the "
           "verdict and the bytes the test sent and received (`\\r` is CR, `\\n` is LF). Skipped checks "
-          "were not allowed on this run (the reason is given); they do not count against the device. "
-          "The information section shows what the device does where the protocol leaves the choice "
+          "could not be done on this run (the reason says what to pass); they do not count against the "
+          "device. The information section shows what the device does where the protocol leaves the choice "
           "open: it never fails a device.", ""]
     o += ["## Device and run", "", "| | |", "|---|---|", f"| firmware version | {rep.version} |",
           f"| date | {rep.date} |"]
@@ -248,9 +293,13 @@ def markdown(rep: Report) -> str:
             if len(r.probes) > EVIDENCE_LIMIT:
                 o.append(f"- ... {len(r.probes) - EVIDENCE_LIMIT} more")
             o.append("")
-    if rep.skipped:
-        o += ["", "## Skipped checks", "", "| check | why |", "|---|---|"]
-        o += [f"| {_md_cell(r.check)} | {_md_cell(r.message)} |" for r in rep.skipped]
+    if rep.all_skipped:
+        o += ["", "## Skipped checks", "", "Not a failure: the run could not do what these need. "
+              "The reason says what to pass to run them.", "", "| check | why |", "|---|---|"]
+        o += [f"| {_md_cell(r.check)}{' (information)' if r.info else ''} | {_md_cell(r.message)} |"
+              for r in rep.all_skipped]
+    if rep.not_run:
+        o += ["", f"**{rep.not_run} check(s) were not run:** the run stopped early (see above)."]
     o += ["", "## Information (the protocol is silent here; never a failure)", ""]
     if rep.infos:
         o += ["| topic | PROTOCOL.md | what the device did | exchanges |", "|---|---|---|---|"]
@@ -266,7 +315,7 @@ def markdown(rep: Report) -> str:
           "move itself.", "", "| command | answers | min (ms) | median (ms) | max (ms) |",
           "|---|---|---|---|---|"]
     o += [f"| {h} | {n} | {lo * 1e3:.1f} | {med * 1e3:.1f} | {hi * 1e3:.1f} |"
-          for h, n, lo, med, hi in rep.timing]
+          for h, n, lo, med, hi in rep.timing] or ["| (no answer was received) | 0 | | | |"]
     o += ["", "## Safety", ""] + [f"- {line}" for line in rep.safety]
     o += [f"- Note: {line}" for line in rep.safety_warnings]
     o += [f"- **PROBLEM:** {line}" for line in rep.safety_problems]
@@ -294,9 +343,9 @@ def html_page(rep: Report) -> str:
          f"<p class='verdict {'PASS' if rep.accepted else 'FAIL'}'>{_h(rep.verdict_line)}</p>",
          "<p>This report says whether the controller follows every rule the XA-C1 protocol states. Each "
          "check names the rule, the verdict and the bytes sent and received (<code>\\r</code> is CR, "
-         "<code>\\n</code> is LF). Skipped checks were not allowed on this run and do not count against "
-         "the device. The information section shows what the device does where the protocol leaves the "
-         "choice open: it never fails a device.</p>",
+         "<code>\\n</code> is LF). Skipped checks could not be done on this run (the reason says what to "
+         "pass) and do not count against the device. The information section shows what the device does "
+         "where the protocol leaves the choice open: it never fails a device.</p>",
          "<h2>Device and run</h2><table>",
          f"<tr><th>firmware version</th><td>{_h(rep.version)}</td></tr>",
          f"<tr><th>date</th><td>{_h(rep.date)}</td></tr>"]
@@ -314,7 +363,16 @@ def html_page(rep: Report) -> str:
             ev += f"<br>... {len(r.probes) - EVIDENCE_LIMIT} more"
         o.append(f"<tr><td>{_h(r.check)}</td><td>{_h(r.rule)}</td><td>{_h(r.section)}</td>"
                  f"<td class='{r.verdict}'>{r.verdict}</td><td>{ev or '-'}</td></tr>")
-    o.append("</table><h2>Information (the protocol is silent here; never a failure)</h2>")
+    o.append("</table>")
+    if rep.all_skipped:
+        o.append("<h2>Skipped checks</h2><p>Not a failure: the run could not do what these need. "
+                 "The reason says what to pass to run them.</p><table><tr><th>check</th><th>why</th></tr>")
+        o += [f"<tr><td>{_h(r.check)}{' (information)' if r.info else ''}</td><td>{_h(r.message)}</td></tr>"
+              for r in rep.all_skipped]
+        o.append("</table>")
+    if rep.not_run:
+        o.append(f"<p class='FAIL'>{rep.not_run} check(s) were not run: the run stopped early.</p>")
+    o.append("<h2>Information (the protocol is silent here; never a failure)</h2>")
     if rep.infos:
         o.append("<table><tr><th>topic</th><th>PROTOCOL.md</th><th>what the device did</th>"
                  "<th>exchanges</th></tr>")
@@ -330,7 +388,8 @@ def html_page(rep: Report) -> str:
              "include the move itself.</p><table><tr><th>command</th><th>answers</th><th>min (ms)</th>"
              "<th>median (ms)</th><th>max (ms)</th></tr>")
     o += [f"<tr><td>{_h(h)}</td><td>{n}</td><td>{lo * 1e3:.1f}</td><td>{med * 1e3:.1f}</td>"
-          f"<td>{hi * 1e3:.1f}</td></tr>" for h, n, lo, med, hi in rep.timing]
+          f"<td>{hi * 1e3:.1f}</td></tr>" for h, n, lo, med, hi in rep.timing] or [
+        "<tr><td colspan='5'>no answer was received</td></tr>"]
     o.append("</table><h2>Safety</h2><ul>")
     o += [f"<li>{_h(line)}</li>" for line in rep.safety]
     o += [f"<li class='SKIP'>Note: {_h(line)}</li>" for line in rep.safety_warnings]

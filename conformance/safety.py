@@ -1,30 +1,44 @@
-"""Keep the device as it was: snapshot the 15 points and the OUT ports first, restore and verify last.
+"""Keep the device as it was: snapshot the 15 points, the OUT ports and the axis position first,
+restore and verify last.
 
 ``take_snapshot`` runs before the suite writes anything; a point or the OUT ports that cannot be read
 stop the run (nothing could be restored). ``restore`` writes back only what differs, then reads it again
 to verify. A point the snapshot found never written (V or A ``0``, PROTOCOL.md silent item 6) cannot be
-written back (0WP takes V 1-9 and A 1-3), so the suite writes such points only when no restorable point
-is left, and the report names each one it could not restore.
+written back (0WP takes V 1-9 and A 1-3), so on a real device the suite writes only points it can
+restore plus those the user names (``Snapshot.scratch_order``); only the built-in simulator lends it
+every point. The axis goes back to where it was when that was known (homed, inside the safe range) and
+motion is allowed, at a gentle speed, verified by 0RC. The mode is left at 1 (communication): 0CM0 would
+enable the external start inputs again, which only the operator may decide (``--xac1-restore-mode0``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from xac1_proto import spec
 from xac1_proto.frames import (
+    MoveDirect,
+    ReadCurrentAnswer,
     ReadOutputs,
     ReadOutputsAnswer,
     ReadPoint,
     ReadPointAnswer,
+    SwitchMode,
     WriteOutputs,
     WritePoint,
 )
 
-from .dut import DeviceAbort, DeviceUnderTest
+from .dut import DeviceAbort, DeviceUnderTest, MotionRefused
 from .evidence import describe_answer
 
 POINTS = range(spec.FIELDS["n"].command_range[0], spec.FIELDS["n"].command_range[1] + 1)
+# The way back to the starting position: a sixth of the top direct-move speed, the gentlest ramp.
+RESTORE_VEL = spec.FIELDS["vel"].command_range[1] // 6
+RESTORE_A = spec.FIELDS["a"].command_range[0]
+MODE_NOTE = ("The controller is left in mode 1 (communication: external I/O disabled), as after any host "
+             "session. The suite does not send 0CM0 on its own: that would enable the external I/O start "
+             "inputs again without the operator's consent")
 
 
 @dataclass(frozen=True)
@@ -48,10 +62,19 @@ class PointData:
 class Snapshot:
     points: dict[int, PointData]
     outputs: int
+    position: int | None = None  # where the axis was, when homed (0RC Pos not FFFFFF)
+    position_seen: str = "not read"  # what 0RC said at the start, for the report
 
-    def scratch_order(self) -> list[int]:
-        """Points to write in tests: restorable ones first, then the rest."""
-        return sorted(self.points, key=lambda n: (not self.points[n].restorable, n))
+    def scratch_order(self, named: Sequence[int] = (), anything: bool = False) -> list[int]:
+        """Points the suite may write, in the order it uses them: those the user named, then those
+        holding data (restorable); only when ``anything`` (the built-in simulator) every other point."""
+        rest = sorted((n for n in self.points if n not in named),
+                      key=lambda n: (not self.points[n].restorable, n))
+        return list(named) + [n for n in rest if anything or self.points[n].restorable]
+
+    @property
+    def never_written(self) -> list[int]:
+        return [n for n in sorted(self.points) if not self.points[n].restorable]
 
 
 @dataclass
@@ -81,9 +104,17 @@ def _read_outputs(dut: DeviceUnderTest) -> int:
 
 
 def take_snapshot(dut: DeviceUnderTest) -> Snapshot:
-    """Read every point and the OUT ports (an alarm found latched is reset first)."""
+    """Read every point, the OUT ports and the position (an alarm found latched is reset first)."""
     dut.settle()
-    return Snapshot({n: _read_point(dut, n) for n in POINTS}, _read_outputs(dut))
+    snap = Snapshot({n: _read_point(dut, n) for n in POINTS}, _read_outputs(dut))
+    p = dut.current_position()
+    if isinstance(p.frame, ReadCurrentAnswer) and not p.errors:
+        pos = p.frame.pos
+        snap.position = None if pos == spec.UNKNOWN_POSITION else pos
+        snap.position_seen = "FFFFFF (not homed)" if snap.position is None else f"0x{pos:06X}"
+    else:
+        snap.position_seen = describe_answer(p)
+    return snap
 
 
 def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
@@ -118,8 +149,64 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
                 out.problems.append(f"OUT ports: wrote back {snap.outputs} but they read {after_o}")
         else:
             out.lines.append(f"OUT ports unchanged ({snap.outputs})")
+        _restore_position(dut, snap, out)
+        _mode(dut, out)
     except DeviceAbort as exc:
         out.problems.append(f"restore stopped: {exc}")
     except Exception as exc:  # noqa: BLE001 - the report must say what happened, whatever it was
         out.problems.append(f"restore stopped: {type(exc).__name__}: {exc}")
     return out
+
+
+def _position_now(dut: DeviceUnderTest) -> int | None:
+    p = dut.current_position()
+    return p.frame.pos if isinstance(p.frame, ReadCurrentAnswer) and not p.errors else None
+
+
+def _restore_position(dut: DeviceUnderTest, snap: Snapshot, out: RestoreReport) -> None:
+    """Move the axis back where it was, when that was known and may be done; say why not otherwise."""
+    s, start = dut.settings, snap.position
+    if not s.motion:
+        out.lines.append(f"axis not moved by the run (motion not allowed); 0RC read {snap.position_seen} "
+                         f"at the start")
+        return
+    now = _position_now(dut)
+    if start is not None and now == start:
+        out.lines.append(f"axis position unchanged: 0x{start:06X}, as at the start")
+        return
+    here = "unknown" if now is None or now == spec.UNKNOWN_POSITION else f"0x{now:06X}"
+    why = None
+    if start is None:
+        why = f"it was not known at the start (0RC answered {snap.position_seen})"
+    elif not s.in_range(start):
+        why = f"the starting position 0x{start:06X} is outside the safe range {s.describe_range()}"
+    if why is not None:
+        out.warnings.append(f"axis position not restored: {why}; it is now {here}")
+        return
+    assert start is not None
+    try:
+        m = dut.send(MoveDirect(vel=RESTORE_VEL, a=RESTORE_A, pos=start))
+    except MotionRefused as exc:
+        out.warnings.append(f"axis position not restored (0x{start:06X} at the start, {here} now): {exc}")
+        return
+    after = _position_now(dut)
+    if after == start:
+        out.lines.append(f"axis moved back to its starting position 0x{start:06X} (from {here}; 0MV with "
+                         f"vel {RESTORE_VEL:02X}, a sixth of the top speed, and A={RESTORE_A}, the slowest "
+                         f"ramp) and 0RC confirms it")
+    else:
+        seen = "unknown" if after is None else f"0x{after:06X}"
+        out.problems.append(f"axis position: moved back to 0x{start:06X} ({m.show()}) but 0RC reads {seen}")
+
+
+def _mode(dut: DeviceUnderTest, out: RestoreReport) -> None:
+    """Leave mode 1, or with ``restore_mode0`` send 0CM0 as the very last command."""
+    if not dut.settings.restore_mode0:
+        out.lines.append(f"{MODE_NOTE}; pass {dut.settings.flag('restore-mode0')} to have it sent last")
+        return
+    p = dut.send(SwitchMode(mode=0))
+    if p.echoes():
+        out.lines.append("mode set to 0 (external start) by 0CM0, the last command of the run, as asked "
+                         f"({dut.settings.flag('restore-mode0')})")
+    else:
+        out.problems.append(f"0CM0 (to set mode 0 as asked) got {describe_answer(p)}")

@@ -2,7 +2,8 @@
 
 The rules (README "Conformance"): the built-in simulator (a ``xac1sim://`` URL) may always move and is
 always fresh; a real device moves only with ``--xac1-allow-motion`` and a safe range, and only to
-positions inside that range; the power-on checks run only on a device declared fresh.
+positions inside that range; the power-on checks run only on a device declared fresh; on a real device
+the suite writes only points it can write back, plus those named with ``--xac1-scratch-points``.
 """
 
 from __future__ import annotations
@@ -48,6 +49,23 @@ def parse_safe_range(text: str) -> tuple[int, int]:
     return lo, hi
 
 
+def parse_points(text: str) -> tuple[int, ...]:
+    """``1,2,F``: point numbers (one hex digit each, 1-F) the suite may overwrite, in the order given."""
+    lo, hi = spec.FIELDS["n"].command_range
+    out: list[int] = []
+    for part in (t.strip() for t in text.split(",")):
+        try:
+            n = int(part, 16)
+        except ValueError:
+            n = -1
+        if len(part) != 1 or not lo <= n <= hi:
+            raise SettingsError(f"--xac1-scratch-points: expected point numbers {lo:X}-{hi:X} separated by "
+                                f"commas (e.g. 1,2,F), got {part!r} in {text!r}")
+        if n not in out:
+            out.append(n)
+    return tuple(out)
+
+
 def _sim_time_scale(url: str) -> float:
     """The ``time_scale`` of a ``xac1sim://`` URL (1 when absent or unreadable: wait as for real motion)."""
     from urllib.parse import parse_qs, urlsplit
@@ -75,11 +93,15 @@ class Settings:
     examples: int
     timeout: float = 0.5  # turnaround timeout of one answer, seconds
     time_scale: float = 1.0  # how fast moves run compared with the speed table (the simulator's option)
+    scratch_points: tuple[int, ...] = ()  # points the user lets the suite overwrite, even if never written
+    restore_mode0: bool = False  # send 0CM0 as the very last command (external start enabled again)
+    cli: bool = False  # started by ``xac1 conformance``: name its options (--allow-motion), not pytest's
 
     @classmethod
     def make(cls, port: str | None, allow_motion: bool, fresh: bool, safe_range: str | None,
              seed: int | None = None, examples: int | None = None,
-             timeout: float | None = None) -> Settings:
+             timeout: float | None = None, scratch_points: str | None = None, restore_mode0: bool = False,
+             cli: bool = False) -> Settings:
         port = port or DEFAULT_PORT
         sim = is_simulator(port)
         rng = parse_safe_range(safe_range) if safe_range else None
@@ -95,7 +117,13 @@ class Settings:
             raise SettingsError(f"--xac1-timeout: expected seconds > 0, got {timeout}")
         return cls(port=port, simulator=sim, motion=motion, fresh=fresh or sim, safe_range=rng,
                    seed=DEFAULT_SEED if seed is None else seed, examples=examples or (30 if sim else 10),
-                   timeout=timeout or (0.2 if sim else 0.5), time_scale=_sim_time_scale(port) if sim else 1.0)
+                   timeout=timeout or (0.2 if sim else 0.5), time_scale=_sim_time_scale(port) if sim else 1.0,
+                   scratch_points=parse_points(scratch_points) if scratch_points else (),
+                   restore_mode0=restore_mode0, cli=cli)
+
+    def flag(self, name: str) -> str:
+        """How the user spells option ``name`` (``allow-motion``) in the command they ran."""
+        return f"--{name}" if self.cli else f"--xac1-{name}"
 
     def in_range(self, pos: int) -> bool:
         return self.safe_range is not None and self.safe_range[0] <= pos <= self.safe_range[1]

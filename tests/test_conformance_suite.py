@@ -92,8 +92,8 @@ def test_html_report_and_skips_are_explained(tmp_path):
         status = sim.model.status()
     assert r.returncode == 0, r.stdout[-3000:]
     page = report.read_text()
-    assert page.startswith("<!DOCTYPE html>") and "SKIP" in page and "--xac1-allow-motion" in page
-    assert "--xac1-fresh" in page
+    assert page.startswith("<!DOCTYPE html>") and "SKIP" in page and "pass --allow-motion" in page
+    assert "pass --fresh" in page and "--xac1-" not in page  # the options of the command that was run
     assert not status.get("homed"), "nothing may move without --allow-motion"
 
 

@@ -16,7 +16,7 @@ from xac1_proto.frames import (
     WritePoint,
 )
 
-# V, A, O at their extremes (V and A always differ, so swapped fields show).
+# V, A, O at their extremes (V and A always differ, so swapped fields show), over two points.
 EXTREMES = [(1, 3, 0), (9, 1, 3), (2, 3, 1), (8, 1, 2)]
 
 
@@ -33,7 +33,7 @@ def test_read_point_carries_n(xac1_dut):
 def test_read_back_after_write(xac1_dut, xac1_kit, k, values):
     """0RP after 0WP ({id}) answers exactly the values written (PROTOCOL.md "Frames", 0WP and 0RP)."""
     v, a, o = values
-    n, pos = xac1_kit.point(k), xac1_kit.safe_pos(k)
+    n, pos = xac1_kit.point(k % 2), xac1_kit.safe_pos(k)  # two points: a device mixing up N shows
     w = xac1_dut.send(WritePoint(n=n, v=v, a=a, o=o, pos=pos))
     expect(w.answered, f"0WP got {describe_answer(w)}", w)
     r = xac1_dut.send(ReadPoint(n=n))
