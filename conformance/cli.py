@@ -49,7 +49,8 @@ def _plugin_registered() -> bool:
 def pytest_args(args: argparse.Namespace) -> list[str]:
     """The pytest command line for these options."""
     checks = Path(__file__).resolve().parent / "checks"
-    out = [str(checks), "-c", str(INI), "--rootdir", str(checks.parent), "-p", "no:cacheprovider"]
+    out = [str(checks), "-c", str(INI), "--rootdir", str(checks.parent), "-p", "no:cacheprovider",
+           "-W", "ignore::pytest.PytestAssertRewriteWarning"]  # the CLI imported the package first
     if not _plugin_registered():
         out += ["-p", "conformance.plugin"]
     out += ["-v", "--tb=short"] if args.verbose else ["-q", "--no-header", "--tb=no", "-rN"]

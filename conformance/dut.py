@@ -24,8 +24,10 @@ from xac1_proto.frames import (
     MoveDirect,
     MovePoint,
     ReadCurrent,
+    ReadOutputsAnswer,
     ReadVersion,
     ReadVersionAnswer,
+    WriteOutputsAnswer,
 )
 from xac1_proto.movewait import MoveBudget
 
@@ -111,12 +113,12 @@ class DeviceUnderTest:
             self.latencies.setdefault(command.header, []).append(p.latency)
         if p.alarm is not None:
             self.latched = p.alarm.code != spec.ALARM_NONE
-        elif p.frame is not None and p.frame.header == spec.RESET_HEADER or p.frame is not None:
+        elif p.frame is not None:  # any other answer: nothing is latched now
             self.latched = False
         self.budget.observe(command, p.frame, not p.errors)
         if isinstance(p.frame, ReadVersionAnswer) and not p.errors:
             self.version = self.version or p.frame.version
-        if p.normal and p.frame is not None and "o" in p.frame.fields() and p.frame.header in ("0RS", "0WS"):
+        if p.normal and isinstance(p.frame, (ReadOutputsAnswer, WriteOutputsAnswer)):
             self.outputs = p.frame.o
 
     def _guard(self, raw: bytes, command: Frame | None) -> None:

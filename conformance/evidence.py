@@ -90,8 +90,9 @@ class Probe:
         from xac1_proto.codec import diagnose
 
         command, _ = diagnose(self.sent, spec.COMMAND)
-        return (self.answered and command is not None and self.frame.header == command.header
-                and self.frame.fields() == command.fields())
+        frame = self.frame
+        return (self.answered and command is not None and frame is not None
+                and frame.header == command.header and frame.fields() == command.fields())
 
     @property
     def command_header(self) -> str:

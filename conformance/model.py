@@ -22,6 +22,7 @@ from xac1_proto.frames import (
     Frame,
     MoveDirect,
     MovePoint,
+    MovePointAnswer,
     ReadCurrent,
     ReadCurrentAnswer,
     ReadOutputs,
@@ -134,6 +135,7 @@ class Model:
             self.points[c.n] = Point(a.v, a.a, a.o, a.pos)
             self.written.add(c.n)
         elif isinstance(c, MovePoint):
+            assert isinstance(a, MovePointAnswer)
             if a.n != c.n:
                 out.append(f"0MP{c.n:X} answered N={a.n:X}")
             self.homed = True
