@@ -27,6 +27,16 @@ def _ms(seconds: float | None) -> float | None:
     return None if seconds is None else round(seconds * 1000.0, 3)
 
 
+def _with_notes(out: dict[str, Any], details: tuple[str, ...],
+                line_errors: tuple[str, ...]) -> dict[str, Any]:
+    """Add the optional keys of frame and junk records: ``details`` and ``line_errors``."""
+    if details:
+        out["details"] = list(details)
+    if line_errors:
+        out["line_errors"] = list(line_errors)
+    return out
+
+
 @dataclass(frozen=True)
 class FrameRecord:
     """A frame seen on one line. ``i``: position among frame and junk records; ``t``: time of its first
@@ -65,11 +75,7 @@ class FrameRecord:
         if self.dir == "device":
             out["reply_to"] = self.reply_to
             out["latency_ms"] = self.latency_ms
-        if self.details:
-            out["details"] = list(self.details)
-        if self.line_errors:
-            out["line_errors"] = list(self.line_errors)
-        return out
+        return _with_notes(out, self.details, self.line_errors)
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), separators=(",", ":"))
@@ -95,11 +101,7 @@ class JunkRecord:
         out: dict[str, Any] = {"type": "junk", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
                                "raw": self.raw.hex(), "violations": list(self.violations),
                                "reason": self.reason}
-        if self.details:
-            out["details"] = list(self.details)
-        if self.line_errors:
-            out["line_errors"] = list(self.line_errors)
-        return out
+        return _with_notes(out, self.details, self.line_errors)
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), separators=(",", ":"))
