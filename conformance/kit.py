@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from xac1_proto import spec
 from xac1_proto.frames import (
+    AlarmAnswer,
     AlarmReset,
     AlarmResetAnswer,
     Frame,
@@ -202,10 +203,10 @@ MALFORMED: tuple[Malformed, ...] = (
     Malformed("bad-terminator", "0RS of the right length whose CR is a space",
               lambda k: ReadOutputs().to_bytes()[:-len(END)] + b" " + END[-1:]),
     Malformed("letter-o", "0RV starting with the letter O",
-              lambda k: b"O" + ReadVersion().to_bytes()[1:]),
+              lambda k: spec.LETTER_O + ReadVersion().to_bytes()[1:]),
     Malformed("unknown-header", "a header no command has (0XY)", lambda k: b"0XY" + END),
     Malformed("answer-header", "the alarm answer's header sent as a command (0%%01)",
-              lambda k: b"0%%01" + END),
+              lambda k: AlarmAnswer(code=spec.ALARM_COMM).to_bytes()),
     Malformed("n-out-of-range", "0RP with N = 0 (0RP takes 1-F)",
               lambda k: ReadPoint.unchecked(n=0).to_bytes()),
     Malformed("v-out-of-range", "0WP with V = 0 (commands take 1-9)", lambda k: _wp(k, v=0).to_bytes()),
