@@ -5,6 +5,12 @@ evidence for the running check, keeps turnaround times per command and learns th
 (``MoveBudget``). Before a move command is sent, whatever the alarm state, the guard checks that motion
 is allowed and that the target (a point's stored Pos for 0MP) and any homing on the way stay inside the
 safe range; otherwise the probe is refused with ``MotionRefused`` and nothing is sent.
+
+Silence is told apart from a device that went away by the liveness check ``settle`` (0%C then 0RV),
+run between checks, after a check whose last probe got no byte back, and as soon as ``SILENT_LIMIT``
+probes in a row got none. When neither answers, the device is gone (``NoAnswer`` if it never answered,
+else ``StoppedAnswering``) and every later probe fails at once without being sent, until ``settle``
+(the restore's first step) finds it answering again.
 """
 
 from __future__ import annotations
@@ -43,6 +49,14 @@ class NoAnswer(DeviceAbort):
     """The device gave no byte back to a reset and a version request: nothing else can be judged."""
 
 
+class StoppedAnswering(DeviceAbort):
+    """The device answered earlier in the run, then neither a reset nor a version request got a byte back
+    (cable pulled, power lost): the run stops and the restore cannot be verified unless it comes back."""
+
+
+SILENT_LIMIT = 2  # probes in a row with not a byte back before the liveness check runs mid-check
+
+
 class MotionRefused(Exception):
     """A move the safety rules forbid; nothing was sent. The message says why."""
 
@@ -72,6 +86,9 @@ class DeviceUnderTest:
         self.latched: bool | None = None  # None: not known (start, after silence)
         self.outputs: int | None = None
         self.cited: dict[str | None, list[Probe]] = {}
+        self.gone: str | None = None  # why the device is taken for gone (StoppedAnswering), else None
+        self.silent_in_row = 0  # probes in a row that got not a single byte back
+        self._checking = False  # inside the liveness check (no nested one)
 
     @classmethod
     def open(cls, settings: Settings) -> DeviceUnderTest:
@@ -88,6 +105,8 @@ class DeviceUnderTest:
         """Send ``raw`` (always ending in LF) through ``transact`` and record what came back."""
         if not raw.endswith(b"\n"):
             raise ValueError(f"probe {raw!r} does not end with LF (PROTOCOL.md silent item 1)")
+        if self.gone is not None:
+            raise StoppedAnswering(self.gone)
         command, _ = diagnose(raw, spec.COMMAND)
         self._guard(raw, command)
         try:
@@ -103,6 +122,9 @@ class DeviceUnderTest:
             p = Probe(self.test, ex)
             self._learn(command, p)
         self.log.append(p)
+        self.silent_in_row = self.silent_in_row + 1 if p.silent else 0
+        if self.silent_in_row >= SILENT_LIMIT and not self._checking:
+            self.settle()  # is anyone there? StoppedAnswering if not, so no check talks on into silence
         return p
 
     def send(self, frame: Frame, *, timeout: float | None = None) -> Probe:
@@ -155,16 +177,32 @@ class DeviceUnderTest:
     # ---- alarms ----
 
     def settle(self) -> None:
-        """Reset a latched alarm (or one that may be latched) and confirm normal answers are back."""
+        """Reset a latched alarm (or one that may be latched) and confirm normal answers are back.
+
+        This is also the liveness check: when neither 0%C nor 0RV gets a byte back the device is gone
+        (``NoAnswer``, or ``StoppedAnswering`` when it answered earlier). A reset that answers followed
+        by a silent 0RV is tried once more, so a device that stops between the two is still told apart
+        from one that ignores 0RV."""
         if self.latched is False:
             return
-        reset = self.send(AlarmReset())
-        if reset.alarm is not None and reset.alarm.code == spec.ALARM_ESTOP:
-            raise DeviceAbort("emergency stop is active (alarm 0E): 0%C cannot clear it. Release the "
-                              "emergency stop input, then run again")
-        check = self.send(ReadVersion())
-        if reset.timed_out and check.timed_out and not (reset.partial or check.partial):
-            raise NoAnswer(self._silence())
+        self.gone, self._checking = None, True
+        try:
+            for attempt in (1, 2):
+                reset = self.send(AlarmReset())
+                if reset.alarm is not None and reset.alarm.code == spec.ALARM_ESTOP:
+                    raise DeviceAbort("emergency stop is active (alarm 0E): 0%C cannot clear it. Release "
+                                      "the emergency stop input, then run again")
+                check = self.send(ReadVersion())
+                if reset.silent and check.silent:
+                    heard = any(p.raw or p.partial for p in self.log)
+                    if not heard:
+                        raise NoAnswer(self._silence(heard))
+                    self.gone = self._silence(heard)
+                    raise StoppedAnswering(self.gone)
+                if not check.silent or attempt == 2:
+                    break
+        finally:
+            self._checking = False
         if check.frame is None or check.alarm is not None:
             raise DeviceAbort(f"after an alarm reset the device still gives {describe_answer(check)} "
                               f"({check.show()}): the run cannot go on")
@@ -172,16 +210,18 @@ class DeviceUnderTest:
         # breaks a framing rule: that is for the checks to judge, not a reason to stop talking.
         self.client.rearm()
 
-    def _silence(self) -> str:
-        heard = sum(1 for p in self.log if p.raw or p.partial)
+    def _silence(self, heard: bool) -> str:
         wait = f"{self.settings.timeout:g} s"
         if not heard:
             return (f"no answer from the device on {self.settings.port}: neither 0%C nor 0RV got a single "
                     f"byte back within {wait}. Check that the controller is powered, the cable is plugged "
                     f"in, the port is the right one and the line is 9600 baud 8N1 (a slow device may need "
                     f"{self.settings.flag('timeout')} S)")
-        return (f"the device stopped answering: after {heard} answers, neither 0%C nor 0RV got a byte "
-                f"back within {wait}. Check the power, the cable and the emergency stop")
+        answers = sum(1 for p in self.log if p.raw or p.partial)
+        last = next(p for p in reversed(self.log) if p.raw or p.partial)
+        return (f"the device stopped answering: it answered {answers} commands (the last: {last.show()}), "
+                f"then neither 0%C nor 0RV got a byte back within {wait}. Check the power, the cable and "
+                f"the emergency stop")
 
     # ---- positions ----
 

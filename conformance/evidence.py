@@ -43,6 +43,11 @@ class Probe:
                    timed_out=True, partial=partial)
 
     @property
+    def silent(self) -> bool:
+        """Not a single byte came back (a timeout with nothing partial)."""
+        return self.timed_out and not self.partial
+
+    @property
     def sent(self) -> bytes:
         return self.exchange.sent
 

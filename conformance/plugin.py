@@ -7,9 +7,12 @@ options become a ``Settings`` (bad values stop the run with a usage error), the 
 the reason. The first check that needs the device opens it and snapshots the points and OUT ports; every
 check starts with any latched alarm reset. Each check's outcome becomes a ``Result`` with the rule from
 its docstring and the probes as evidence. A ``DeviceAbort`` (no port, no answer, emergency stop) is no
-verdict on the check that met it: the run stops, the rest count as not run, exit status 3. When the
-session ends, even after Ctrl-C, the device is restored and verified (Ctrl-C is ignored meanwhile), then
-the summary table and the report file are written, whatever stopped the run.
+verdict on the check that met it: the run stops, the rest count as not run, exit status 3. A check whose
+last probe got no byte back is followed at once by the liveness check, so a device that stopped
+answering (``StoppedAnswering``) takes back the verdict of the check it stopped in (listed as
+interrupted) instead of failing it. When the session ends, even after Ctrl-C, the device is restored
+and verified (Ctrl-C is ignored meanwhile), then the summary table and the report file are written,
+whatever stopped the run; a restore the device did not answer is reported as not verified (exit 3).
 """
 
 from __future__ import annotations
@@ -48,6 +51,9 @@ class Xac1Run:
         self.results: list[Any] = []
         self.abort: str | None = None
         self.no_answer = False  # the abort: the device never answered at all
+        self.stopped = False  # the abort: the device answered, then stopped answering
+        self.interrupted: list[str] = []  # nodeids of checks the abort cut short (no verdict)
+        self.collected: list[tuple[str, str, bool]] = []  # (nodeid, check name, information record)
         self.total = 0  # checks collected (those never run are counted in the report)
         self.total_info = 0  # of which information records
         self.verdict_line: str | None = None  # as printed in the summary (``xac1 conformance`` repeats it)
@@ -167,6 +173,8 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     checks = [i for i in session.items if is_check(i)]
     run.total = len(checks)
     run.total_info = sum(1 for i in checks if i.get_closest_marker("xac1_info"))
+    run.collected = [(i.nodeid, i.name.removeprefix("test_"), i.get_closest_marker("xac1_info") is not None)
+                     for i in checks]
 
 
 # ---- fixtures ----
@@ -184,7 +192,7 @@ def xac1_settings(request: pytest.FixtureRequest) -> Any:
 def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
     """The device under test, opened once; points and OUT ports snapshotted before any write and
     restored when the session ends."""
-    from .dut import DeviceAbort, DeviceUnderTest, NoAnswer
+    from .dut import DeviceAbort, DeviceUnderTest, NoAnswer, StoppedAnswering
     from .safety import take_snapshot
 
     run = _run(request.config)
@@ -197,7 +205,7 @@ def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
     dut.test = "(session start: snapshot)"
     try:
         run.snapshot = take_snapshot(dut)
-    except NoAnswer:
+    except (NoAnswer, StoppedAnswering):
         raise
     except DeviceAbort as exc:
         raise DeviceAbort(f"cannot take the safety snapshot: {exc}; nothing was written") from None
@@ -207,12 +215,23 @@ def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
 
 @pytest.fixture
 def xac1_dut(request: pytest.FixtureRequest, xac1_device: Any) -> Any:
-    """The device for one check: evidence is filed under the check, a latched alarm is reset first."""
-    xac1_device.test = "(between checks: alarm reset)"
-    xac1_device.settle()
-    xac1_device.test = request.node.nodeid
-    yield xac1_device
-    xac1_device.test = None
+    """The device for one check: evidence is filed under the check, a latched alarm is reset first; when
+    the check's last probe got no byte back, the liveness check follows at once (filed under the check)."""
+    from .dut import StoppedAnswering
+
+    dut = xac1_device
+    dut.test = "(between checks: alarm reset)"
+    dut.settle()
+    dut.test = request.node.nodeid
+    yield dut
+    last = dut.log[-1] if dut.log else None
+    try:
+        if dut.gone is not None:  # found gone during the check, whatever the check made of it
+            raise StoppedAnswering(dut.gone)
+        if last is not None and last.test == dut.test and last.silent:
+            dut.settle()  # StoppedAnswering when the device is gone: the check's verdict is taken back
+    finally:
+        dut.test = None
 
 
 @pytest.fixture(scope="session")
@@ -254,13 +273,20 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     run = _run(item.config)
     if run is None or not run.active or not is_check(item):
         return report
-    from .dut import DeviceAbort, NoAnswer
+    from .dut import DeviceAbort, NoAnswer, StoppedAnswering
     from .report import result_from
 
     if call.excinfo is not None and call.excinfo.errisinstance(DeviceAbort):
         run.abort = run.abort or str(call.excinfo.value)
         run.no_answer = run.no_answer or call.excinfo.errisinstance(NoAnswer)
+        run.stopped = run.stopped or call.excinfo.errisinstance(StoppedAnswering)
         item.session.shouldstop = "xac1: the run cannot go on (the XA-C1 conformance summary above says why)"
+        if report.when != "setup" and item.nodeid not in run.interrupted:
+            # Cut short (or its last exchange met the silence): no verdict, nor any record it made.
+            run.interrupted.append(item.nodeid)
+            run.results = [r for r in run.results if r.nodeid != item.nodeid]
+            if run.dut is not None:
+                run.dut.infos = [i for i in run.dut.infos if all(p.test != item.nodeid for p in i.probes)]
         return report  # not a verdict on this check: the run stopped (the report says why)
     if report.when == "call" or (report.when == "setup" and not report.passed) or (
             report.when == "teardown" and report.failed):
@@ -306,12 +332,14 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
             print("\nxac1: restoring the device's points, OUT ports and position...", flush=True)
         _finish(run)
     failed = any(r.verdict in ("FAIL", "ERROR") and not r.info for r in run.results)
-    restore_failed = run.restore_report is not None and run.restore_report.problems
+    rr = run.restore_report
+    restore_failed = rr is not None and rr.problems
+    unverified = rr is not None and rr.unverified
     if ctrl_c:
         pass  # pytest's own status for an interrupted run
     elif failed or restore_failed:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
-    elif run.abort:
+    elif run.abort or unverified:
         session.exitstatus = EXIT_INCOMPLETE
     path = session.config.getoption("xac1_report")
     if path:

@@ -89,6 +89,9 @@ class Report:
     no_answer: bool = False  # the device never answered: nothing could be judged
     not_run: int = 0  # checks collected but never run (the run stopped early)
     info_skipped: list[Result] = field(default_factory=list)
+    stopped: bool = False  # the device answered, then stopped answering: the run did not complete
+    safety_unverified: list[str] = field(default_factory=list)  # the restore could not be done or checked
+    not_run_checks: list[tuple[str, str]] = field(default_factory=list)  # (check, interrupted or not run)
 
     @property
     def all_skipped(self) -> list[Result]:
@@ -106,7 +109,8 @@ class Report:
     @property
     def accepted(self) -> bool:
         passed = [r for r in self.checks if r.verdict == PASS]
-        return bool(passed) and not self.failed and not self.abort and not self.safety_problems
+        return (bool(passed) and not self.failed and not self.abort and not self.safety_problems
+                and not self.safety_unverified)
 
     @property
     def verdict_line(self) -> str:
@@ -115,8 +119,13 @@ class Report:
             return (f"NO ANSWER FROM THE DEVICE: nothing could be checked ({n[PASS]} passed, "
                     f"{self.not_run} not run)")
         head = "CONFORMS" if self.accepted else "DOES NOT CONFORM"
-        if not self.failed and (self.abort or self.safety_problems):
+        if not self.failed and (self.abort or self.safety_problems or self.safety_unverified):
             head = "INCOMPLETE" if n[PASS] else "NOT TESTED"
+        if self.stopped:
+            head = ("DOES NOT CONFORM, then THE DEVICE STOPPED ANSWERING" if self.failed
+                    else "THE DEVICE STOPPED ANSWERING: the run did not complete")
+        elif self.safety_unverified:
+            head += ", and THE DEVICE STOPPED ANSWERING during the restore"
         parts = [f"{n[PASS]} passed", f"{n[FAIL]} failed"]
         if n[ERROR]:
             parts.append(f"{n[ERROR]} broke down (see the details)")
@@ -157,19 +166,27 @@ def build(run: Any) -> Report:
         safety.append("The run stopped before the safety snapshot: nothing was written to the device.")
     rr = run.restore_report
     warnings: list[str] = []
+    unverified: list[str] = []
     if rr is not None:
         safety += rr.lines
         problems += rr.problems
         warnings += rr.warnings
+        unverified += getattr(rr, "unverified", [])
     elif run.snapshot is not None:
         problems.append("the device was not restored (the run ended before the restore step)")
+    judged = {r.nodeid for r in run.results}
+    interrupted = getattr(run, "interrupted", [])
+    cut = "interrupted: the run stopped during this check"
+    not_run_checks = [(name + (" (information)" if info else ""), cut if nodeid in interrupted else "not run")
+                      for nodeid, name, info in getattr(run, "collected", []) if nodeid not in judged]
     return Report(
         port=s.port, version=(dut.version if dut is not None and dut.version else "unknown"),
         date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=options, checks=checks,
         infos=list(dut.infos) if dut is not None else [], info_errors=info_errors,
         timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
         abort=run.abort, safety_warnings=warnings, no_answer=getattr(run, "no_answer", False),
-        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped)
+        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
+        stopped=getattr(run, "stopped", False), safety_unverified=unverified, not_run_checks=not_run_checks)
 
 
 def _scratch_text(run: Any) -> str:
@@ -245,10 +262,29 @@ def terminal_lines(rep: Report, width: int = 110) -> list[tuple[str, dict[str, b
         out.append((f"safety note: {line}", {"yellow": True}))
     for line in rep.safety_problems:
         out.append((f"safety PROBLEM: {line}", {"red": True, "bold": True}))
+    for line in rep.safety_unverified:
+        out.append((f"safety NOT RESTORED: {line}", {"red": True, "bold": True}))
+    if rep.not_run_checks:
+        out.append((f"not run: {_grouped(rep.not_run_checks)}", {"yellow": True}))
     if rep.abort:
         out.append((f"run stopped: {rep.abort}", {"red": True, "bold": True}))
     out.append((rep.verdict_line, {"green" if rep.accepted else "red": True, "bold": True}))
     return out
+
+
+def _not_run_count(rep: Report) -> str:
+    info = sum(name.endswith(" (information)") for name, _ in rep.not_run_checks)
+    rules = f"{len(rep.not_run_checks) - info} check(s) of stated rules"
+    return rules + (f" and {info} information record(s)" if info else "")
+
+
+def _grouped(checks: list[tuple[str, str]]) -> str:
+    """Check names, parametrized ones counted under their base name: ``malformed_answered (16)``."""
+    counts: dict[str, int] = {}
+    for name, why in checks:
+        key = name.split("[")[0] + (" (interrupted)" if why.startswith("interrupted") else "")
+        counts[key] = counts.get(key, 0) + 1
+    return ", ".join(k if c == 1 else f"{k} ({c})" for k, c in counts.items())
 
 
 # ---- files ----
@@ -298,7 +334,12 @@ def markdown(rep: Report) -> str:
               "The reason says what to pass to run them.", "", "| check | why |", "|---|---|"]
         o += [f"| {_md_cell(r.check)}{' (information)' if r.info else ''} | {_md_cell(r.message)} |"
               for r in rep.all_skipped]
-    if rep.not_run:
+    if rep.not_run_checks:
+        o += ["", "## Checks not run", "",
+              f"The run did not complete (see above): these {_not_run_count(rep)} have no verdict.", "",
+              "| check | |", "|---|---|"]
+        o += [f"| {_md_cell(name)} | {_md_cell(why)} |" for name, why in rep.not_run_checks]
+    elif rep.not_run:
         o += ["", f"**{rep.not_run} check(s) were not run:** the run stopped early (see above)."]
     o += ["", "## Information (the protocol is silent here; never a failure)", ""]
     if rep.infos:
@@ -319,6 +360,7 @@ def markdown(rep: Report) -> str:
     o += ["", "## Safety", ""] + [f"- {line}" for line in rep.safety]
     o += [f"- Note: {line}" for line in rep.safety_warnings]
     o += [f"- **PROBLEM:** {line}" for line in rep.safety_problems]
+    o += [f"- **NOT RESTORED:** {line}" for line in rep.safety_unverified]
     return "\n".join(o) + "\n"
 
 
@@ -370,7 +412,12 @@ def html_page(rep: Report) -> str:
         o += [f"<tr><td>{_h(r.check)}{' (information)' if r.info else ''}</td><td>{_h(r.message)}</td></tr>"
               for r in rep.all_skipped]
         o.append("</table>")
-    if rep.not_run:
+    if rep.not_run_checks:
+        o.append(f"<h2>Checks not run</h2><p class='FAIL'>The run did not complete: these "
+                 f"{_not_run_count(rep)} have no verdict.</p><table>")
+        o += [f"<tr><td>{_h(name)}</td><td>{_h(why)}</td></tr>" for name, why in rep.not_run_checks]
+        o.append("</table>")
+    elif rep.not_run:
         o.append(f"<p class='FAIL'>{rep.not_run} check(s) were not run: the run stopped early.</p>")
     o.append("<h2>Information (the protocol is silent here; never a failure)</h2>")
     if rep.infos:
@@ -394,6 +441,7 @@ def html_page(rep: Report) -> str:
     o += [f"<li>{_h(line)}</li>" for line in rep.safety]
     o += [f"<li class='SKIP'>Note: {_h(line)}</li>" for line in rep.safety_warnings]
     o += [f"<li class='FAIL'>PROBLEM: {_h(line)}</li>" for line in rep.safety_problems]
+    o += [f"<li class='FAIL'>NOT RESTORED: {_h(line)}</li>" for line in rep.safety_unverified]
     o.append("</ul></body></html>")
     return "\n".join(o) + "\n"
 

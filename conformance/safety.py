@@ -9,6 +9,8 @@ restore plus those the user names (``Snapshot.scratch_order``); only the built-i
 every point. The axis goes back to where it was when that was known (homed, inside the safe range) and
 motion is allowed, at a gentle speed, verified by 0RC. The mode is left at 1 (communication): 0CM0 would
 enable the external start inputs again, which only the operator may decide (``--xac1-restore-mode0``).
+A device that does not answer during the restore leaves it unverified: the report then says so and
+lists what the run sent that may have changed the device, with the values to check by hand.
 """
 
 from __future__ import annotations
@@ -17,20 +19,25 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from xac1_proto import spec
+from xac1_proto.codec import diagnose
 from xac1_proto.frames import (
+    Frame,
     MoveDirect,
+    MovePoint,
+    ReadCurrent,
     ReadCurrentAnswer,
     ReadOutputs,
     ReadOutputsAnswer,
     ReadPoint,
     ReadPointAnswer,
+    StoreCurrent,
     SwitchMode,
     WriteOutputs,
     WritePoint,
 )
 
-from .dut import DeviceAbort, DeviceUnderTest, MotionRefused
-from .evidence import describe_answer
+from .dut import DeviceAbort, DeviceUnderTest, MotionRefused, StoppedAnswering
+from .evidence import Probe, describe_answer
 
 POINTS = range(spec.FIELDS["n"].command_range[0], spec.FIELDS["n"].command_range[1] + 1)
 # The way back to the starting position: a sixth of the top direct-move speed, the gentlest ramp.
@@ -82,14 +89,25 @@ class RestoreReport:
     lines: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)  # changes the protocol cannot undo
     problems: list[str] = field(default_factory=list)  # a restore that failed
+    unverified: list[str] = field(default_factory=list)  # no answer: not restored, not checked
 
     @property
     def ok(self) -> bool:
-        return not self.problems
+        return not self.problems and not self.unverified
+
+
+def _ask(dut: DeviceUnderTest, frame: Frame) -> Probe:
+    """Send ``frame``; after silence, check the device is there (``StoppedAnswering`` if not) and ask
+    once more, so one lost answer neither stops the snapshot nor the restore."""
+    p = dut.send(frame)
+    if p.silent:
+        dut.settle()
+        p = dut.send(frame)
+    return p
 
 
 def _read_point(dut: DeviceUnderTest, n: int) -> PointData:
-    p = dut.send(ReadPoint(n=n))
+    p = _ask(dut, ReadPoint(n=n))
     if not isinstance(p.frame, ReadPointAnswer):  # data that decodes is kept, even from a flawed answer
         raise DeviceAbort(f"cannot read point {n:X}: {describe_answer(p)} ({p.show()})")
     f = p.frame
@@ -97,7 +115,7 @@ def _read_point(dut: DeviceUnderTest, n: int) -> PointData:
 
 
 def _read_outputs(dut: DeviceUnderTest) -> int:
-    p = dut.send(ReadOutputs())
+    p = _ask(dut, ReadOutputs())
     if not isinstance(p.frame, ReadOutputsAnswer):
         raise DeviceAbort(f"cannot read the OUT ports: {describe_answer(p)} ({p.show()})")
     return p.frame.o
@@ -107,7 +125,7 @@ def take_snapshot(dut: DeviceUnderTest) -> Snapshot:
     """Read every point, the OUT ports and the position (an alarm found latched is reset first)."""
     dut.settle()
     snap = Snapshot({n: _read_point(dut, n) for n in POINTS}, _read_outputs(dut))
-    p = dut.current_position()
+    p = _ask(dut, ReadCurrent())
     if isinstance(p.frame, ReadCurrentAnswer) and not p.errors:
         pos = p.frame.pos
         snap.position = None if pos == spec.UNKNOWN_POSITION else pos
@@ -132,7 +150,7 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
                 out.warnings.append(f"point {n:X} was never written before the run ({before.show()}); the "
                                     f"run left {now.show()} and the protocol cannot erase a point")
                 continue
-            dut.send(WritePoint(n=n, v=before.v, a=before.a, o=before.o, pos=before.pos))
+            _ask(dut, WritePoint(n=n, v=before.v, a=before.a, o=before.o, pos=before.pos))
             after = _read_point(dut, n)
             if after == before:
                 out.lines.append(f"point {n:X} restored to {before.show()}")
@@ -141,7 +159,7 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
         out.lines.append(f"{len(POINTS) - changed} of {len(POINTS)} points unchanged by the run")
         now_o = _read_outputs(dut)
         if now_o != snap.outputs:
-            dut.send(WriteOutputs(o=snap.outputs))
+            _ask(dut, WriteOutputs(o=snap.outputs))
             after_o = _read_outputs(dut)
             if after_o == snap.outputs:
                 out.lines.append(f"OUT ports restored to {snap.outputs}")
@@ -151,6 +169,9 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
             out.lines.append(f"OUT ports unchanged ({snap.outputs})")
         _restore_position(dut, snap, out)
         _mode(dut, out)
+    except StoppedAnswering as exc:
+        out.unverified.append(f"the restore could not be done or verified: {exc}")
+        out.unverified += _changes_sent(dut, snap)
     except DeviceAbort as exc:
         out.problems.append(f"restore stopped: {exc}")
     except Exception as exc:  # noqa: BLE001 - the report must say what happened, whatever it was
@@ -158,8 +179,34 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
     return out
 
 
+def _changes_sent(dut: DeviceUnderTest, snap: Snapshot) -> list[str]:
+    """What the run sent that may have changed the device (answered or not), with the values it had at
+    the start: what to check by hand when the restore could not be done."""
+    points: set[int] = set()
+    outputs = moved = mode = False
+    for p in dut.log:
+        command, violations = diagnose(p.sent, spec.COMMAND)
+        if violations:  # a malformed probe: refused with an alarm by a device that follows the rules
+            continue
+        if isinstance(command, (WritePoint, StoreCurrent)) and command.n in snap.points:
+            points.add(command.n)
+        outputs = outputs or isinstance(command, WriteOutputs)
+        moved = moved or isinstance(command, (MovePoint, MoveDirect))
+        mode = mode or isinstance(command, SwitchMode)
+    out = [f"not verified: point {n:X}, written during the run; it held {snap.points[n].show()} before"
+           for n in sorted(points)]
+    if outputs:
+        out.append(f"not verified: the OUT ports, written during the run; they were {snap.outputs} before")
+    if moved:
+        out.append(f"not verified: the axis position, moved during the run; 0RC read {snap.position_seen} "
+                   f"before")
+    if mode:
+        out.append("not verified: the mode, switched during the run (0CM)")
+    return out or ["the run sent nothing that changes the device (no write, no move)"]
+
+
 def _position_now(dut: DeviceUnderTest) -> int | None:
-    p = dut.current_position()
+    p = _ask(dut, ReadCurrent())
     return p.frame.pos if isinstance(p.frame, ReadCurrentAnswer) and not p.errors else None
 
 

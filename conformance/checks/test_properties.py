@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, Phase, seed, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, get_state_machine_test, precondition, rule
 
+from conformance.dut import DeviceAbort
 from conformance.evidence import Probe, RuleBroken, describe_answer
 from conformance.kit import MALFORMED
 from conformance.model import Model, Point
@@ -193,6 +194,8 @@ def test_random_sequences(xac1_dut, xac1_kit, xac1_settings):
     run = seed(s.seed)(get_state_machine_test(Sequences, settings=config))
     try:
         run()
+    except DeviceAbort:
+        raise  # the run stops (the device went away): not a verdict on the sequences
     except Exception:
         if first_failure:
             raise first_failure[0] from None
