@@ -50,13 +50,10 @@ def reset_ok(p: Probe) -> bool:
 
 def two_offset(header: str) -> int:
     """Byte offset of the mandatory ``2`` in ``header``'s answer."""
-    fs = spec.SPECS[(header, spec.ANSWER)]
-    at = spec.HEADER_WIDTH
-    for item in fs.layout:
-        if item == spec.TWO:
-            return at
-        at += spec.FIELDS[item].width if isinstance(item, str) else item.width
-    raise ValueError(f"{header} answers carry no 2")
+    at = spec.SPECS[(header, spec.ANSWER)].literal_offset(spec.TWO)
+    if at is None:
+        raise ValueError(f"{header} answers carry no 2")
+    return at
 
 
 class NotEnoughPoints(Exception):
@@ -174,13 +171,10 @@ def _swap(raw: bytes, at: int, new: bytes) -> bytes:
 
 
 def _two_at(frame: Frame) -> int:
-    fs = frame.spec()
-    at = spec.HEADER_WIDTH
-    for item in fs.layout:
-        if item == spec.TWO:
-            return at
-        at += spec.FIELDS[item].width if isinstance(item, str) else item.width
-    raise ValueError(f"{fs.header} has no 2")
+    at = frame.spec().literal_offset(spec.TWO)
+    if at is None:
+        raise ValueError(f"{frame.header} has no 2")
+    return at
 
 
 def _field_at(frame_cls: type[Frame], name: str) -> int:

@@ -118,3 +118,20 @@ def test_alarm_meanings_come_from_the_table():
     assert x.AlarmAnswer(code=0x0E).meaning == "emergency stop"
     assert "reserved" in x.AlarmAnswer(code=2).meaning
     assert "unknown" in x.AlarmAnswer(code=0x42).meaning
+
+
+def test_literal_offset_of_the_mandatory_2():
+    """The 2 sits after N V A O in point answers (byte 7) and after O in 0RS/0WS (byte 4)."""
+    assert spec.SPECS[("0RP", "answer")].literal_offset(spec.TWO) == 7
+    assert spec.SPECS[("0WS", "command")].literal_offset(spec.TWO) == 4
+    assert spec.SPECS[("0RV", "answer")].literal_offset(spec.TWO) is None
+    for fs in spec.FRAME_SPECS:
+        at = fs.literal_offset(spec.TWO)
+        if at is not None:
+            assert _example(fs).to_bytes()[at:at + 1] == b"2", fs.key
+
+
+def _example(fs):
+    lows = {n: (str(fs.field_range(n)[0]).zfill(3) if spec.FIELDS[n].text else fs.field_range(n)[0])
+            for n in fs.field_names}
+    return x.FRAME_CLASSES[fs.key](**lows)

@@ -110,6 +110,15 @@ class FrameSpec:
     def field_range(self, name: str) -> tuple[int, int]:
         return self.ranges.get(name) or FIELDS[name].range_for(self.role)
 
+    def literal_offset(self, literal: Literal) -> int | None:
+        """Byte offset of ``literal`` (e.g. the mandatory ``2``) in a well-formed frame, or None."""
+        at = HEADER_WIDTH
+        for item in self.layout:
+            if item == literal:
+                return at
+            at += _width(item)
+        return None
+
     def offsets(self) -> dict[str, int]:
         """Byte offset of each field in a well-formed frame."""
         out, at = {}, HEADER_WIDTH
