@@ -26,9 +26,9 @@ import tty
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from sniffer.chunk import Chunk
 from sniffer.io.pcap import PcapngWriter
-from sniffer.io.recording import RecordingWriter
+from xac1_proto.chunk import Chunk
+from xac1_proto.recording import RecordingWriter
 
 # (command the host sends, answer the device sends or None, pause after the step in seconds)
 SESSION: list[tuple[bytes, bytes | None, float]] = [

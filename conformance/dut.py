@@ -63,7 +63,7 @@ class MotionRefused(Exception):
 
 @dataclass
 class Info:
-    """What the device did where PROTOCOL.md is silent: information, never a verdict."""
+    """What the device did where docs/protocol.md is silent: information, never a verdict."""
 
     topic: str
     section: str
@@ -104,7 +104,7 @@ class DeviceUnderTest:
     def probe(self, raw: bytes, *, timeout: float | None = None) -> Probe:
         """Send ``raw`` (always ending in LF) through ``transact`` and record what came back."""
         if not raw.endswith(b"\n"):
-            raise ValueError(f"probe {raw!r} does not end with LF (PROTOCOL.md silent item 1)")
+            raise ValueError(f"probe {raw!r} does not end with LF (docs/protocol.md silent item 1)")
         if self.gone is not None:
             raise StoppedAnswering(self.gone)
         command, _ = diagnose(raw, spec.COMMAND)
@@ -206,7 +206,7 @@ class DeviceUnderTest:
         if check.frame is None or check.alarm is not None:
             raise DeviceAbort(f"after an alarm reset the device still gives {describe_answer(check)} "
                               f"({check.show()}): the run cannot go on")
-        # A non-alarm answer ends the run of communication errors (PROTOCOL.md host duty), even when it
+        # A non-alarm answer ends the run of communication errors (docs/protocol.md host duty), even when it
         # breaks a framing rule: that is for the checks to judge, not a reason to stop talking.
         self.client.rearm()
 

@@ -1,9 +1,9 @@
-"""A reference model of the rules PROTOCOL.md states, for the random-sequence check (sans-IO).
+"""A reference model of the rules docs/protocol.md states, for the random-sequence check (sans-IO).
 
 How it works: the model holds what the host can know for sure: every point's data (read before the
 sequence starts, then updated by writes), the OUT ports, whether the axis is homed, its position, the
 latched alarm and the firmware version. ``judge(command, answer)`` compares one decoded answer with the
-stated rules and returns the broken ones as messages, then updates the model. Whatever PROTOCOL.md
+stated rules and returns the broken ones as messages, then updates the model. Whatever docs/protocol.md
 leaves open becomes "unknown" and is learnt from the next answer instead of checked: the alarm code of
 a malformed command (silent item 1), the OUT ports after 0MP N (item 8), 0RC's N, V, A and O after a move
 (items 7-9), the position right after homing (item 7), V, A and O of a 0WC answer. Moves go only to

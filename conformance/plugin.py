@@ -33,7 +33,7 @@ _SECTION = re.compile(r'PROTOCOL\.md[\s,]+((?:silent item \d+)|(?:"[^"]+"))')
 MARKERS = {
     "xac1_motion": "the check moves the actuator (needs --xac1-allow-motion and a safe range)",
     "xac1_fresh": "the check needs a freshly powered-on, never-homed device (--xac1-fresh); runs first",
-    "xac1_info": "records what the device does where PROTOCOL.md is silent; never a failed verdict",
+    "xac1_info": "records what the device does where docs/protocol.md is silent; never a failed verdict",
     "xac1_last": "runs after every other check",
 }
 
@@ -368,6 +368,6 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
 
 
 def section_of(doc: str) -> str:
-    """The PROTOCOL.md section a check's docstring cites ('' when none)."""
+    """The docs/protocol.md section a check's docstring cites ('' when none)."""
     m = _SECTION.search(doc or "")
     return " ".join(m.group(1).strip('"').split()) if m else ""

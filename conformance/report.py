@@ -247,7 +247,7 @@ def terminal_lines(rep: Report, width: int = 110) -> list[tuple[str, dict[str, b
             out.append((f"    {', '.join(names)}", {}))
     if rep.infos:
         out.append(("", {}))
-        out.append(("information (PROTOCOL.md is silent here; never a failure):", {"bold": True}))
+        out.append(("information (docs/protocol.md is silent here; never a failure):", {"bold": True}))
         for i in rep.infos:
             out.append((f"  {i.topic}: {i.observed}", {}))
     if rep.timing:
@@ -301,7 +301,7 @@ def _md_cell(text: str) -> str:
 def markdown(rep: Report) -> str:
     o: list[str] = ["# XA-C1 conformance report", "", f"**Verdict: {rep.verdict_line}**", ""]
     o += ["This report says whether the controller follows every rule the XA-C1 protocol states "
-          "(PROTOCOL.md, a restatement of the vendor's text). Each check below names the rule, the "
+          "(docs/protocol.md, a restatement of the vendor's text). Each check below names the rule, the "
           "verdict and the bytes the test sent and received (`\\r` is CR, `\\n` is LF). Skipped checks "
           "could not be done on this run (the reason says what to pass); they do not count against the "
           "device. The information section shows what the device does where the protocol leaves the choice "
@@ -311,7 +311,7 @@ def markdown(rep: Report) -> str:
     o += [f"| {k} | {_md_cell(v)} |" for k, v in rep.options]
     if rep.abort:
         o += ["", f"**The run stopped early:** {_md_cell(rep.abort)}"]
-    o += ["", "## Verdicts", "", "| check | rule | PROTOCOL.md | verdict | evidence (sent -> received) |",
+    o += ["", "## Verdicts", "", "| check | rule | docs/protocol.md | verdict | evidence (sent -> received) |",
           "|---|---|---|---|---|"]
     for r in rep.checks:
         ev = "<br>".join(_md_code(p.show()) for p in r.probes[:2]) or _md_cell(r.message or "-")
@@ -322,7 +322,7 @@ def markdown(rep: Report) -> str:
     if rep.failed:
         o += ["", "## Failures in detail", ""]
         for r in rep.failed:
-            where = f" (PROTOCOL.md {r.section})" if r.section and "PROTOCOL.md" not in r.rule else ""
+            where = f" (docs/protocol.md {r.section})" if r.section and "docs/protocol.md" not in r.rule else ""
             o += [f"### {r.verdict}: {_md_cell(r.check)}", "", f"Rule: {r.rule}{where}", "",
                   f"What happened: {r.message}", ""]
             o += ["Exchanges:", ""] + [f"- {_md_code(p.show())}" for p in r.probes[:EVIDENCE_LIMIT]]
@@ -343,7 +343,7 @@ def markdown(rep: Report) -> str:
         o += ["", f"**{rep.not_run} check(s) were not run:** the run stopped early (see above)."]
     o += ["", "## Information (the protocol is silent here; never a failure)", ""]
     if rep.infos:
-        o += ["| topic | PROTOCOL.md | what the device did | exchanges |", "|---|---|---|---|"]
+        o += ["| topic | docs/protocol.md | what the device did | exchanges |", "|---|---|---|---|"]
         for i in rep.infos:
             ev = "<br>".join(_md_code(p.show()) for p in i.probes[:3]) or "-"
             o.append(f"| {_md_cell(i.topic)} | {_md_cell(i.section)} | {_md_cell(i.observed)} | {ev} |")
@@ -395,7 +395,7 @@ def html_page(rep: Report) -> str:
     o.append("</table>")
     if rep.abort:
         o.append(f"<p class='FAIL'>The run stopped early: {_h(rep.abort)}</p>")
-    o.append("<h2>Verdicts</h2><table><tr><th>check</th><th>rule</th><th>PROTOCOL.md</th><th>verdict</th>"
+    o.append("<h2>Verdicts</h2><table><tr><th>check</th><th>rule</th><th>docs/protocol.md</th><th>verdict</th>"
              "<th>evidence (sent -&gt; received)</th></tr>")
     for r in rep.checks:
         ev = "<br>".join(_hcode(p) for p in r.probes[:EVIDENCE_LIMIT])
@@ -421,7 +421,7 @@ def html_page(rep: Report) -> str:
         o.append(f"<p class='FAIL'>{rep.not_run} check(s) were not run: the run stopped early.</p>")
     o.append("<h2>Information (the protocol is silent here; never a failure)</h2>")
     if rep.infos:
-        o.append("<table><tr><th>topic</th><th>PROTOCOL.md</th><th>what the device did</th>"
+        o.append("<table><tr><th>topic</th><th>docs/protocol.md</th><th>what the device did</th>"
                  "<th>exchanges</th></tr>")
         for i in rep.infos:
             o.append(f"<tr><td>{_h(i.topic)}</td><td>{_h(i.section)}</td><td>{_h(i.observed)}</td>"

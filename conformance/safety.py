@@ -3,7 +3,7 @@ restore and verify last.
 
 ``take_snapshot`` runs before the suite writes anything; a point or the OUT ports that cannot be read
 stop the run (nothing could be restored). ``restore`` writes back only what differs, then reads it again
-to verify. A point the snapshot found never written (V or A ``0``, PROTOCOL.md silent item 6) cannot be
+to verify. A point the snapshot found never written (V or A ``0``, docs/protocol.md silent item 6) cannot be
 written back (0WP takes V 1-9 and A 1-3), so on a real device the suite writes only points it can
 restore plus those the user names (``Snapshot.scratch_order``); only the built-in simulator lends it
 every point. The axis goes back to where it was when that was known (homed, inside the safe range) and

@@ -4,7 +4,7 @@ How it works. Each direction has its own ``xac1_proto.Framer``; every framer eve
 ``FrameBytes`` -> ``FrameRecord`` decoded with the lenient ``diagnose`` (host bytes as commands, device
 bytes as answers; its violations are kept as they are), ``Junk`` -> ``JunkRecord`` (``garbage``). Host
 frames join a first-in first-out queue of lines waiting for an answer; each device frame takes the
-answer slot of the queue (PROTOCOL.md "Violation codes": answers pair first in, first out). Time is
+answer slot of the queue (docs/protocol.md "Violation codes": answers pair first in, first out). Time is
 passed in (``Chunk.t``, ``tick(now)``); nothing here reads a clock. A conversation-level violation goes
 on the record being processed when it is detected; ``no-answer`` gets a ``TimeoutRecord`` of its own.
 
@@ -72,13 +72,13 @@ from dataclasses import dataclass
 from typing import Final
 
 from xac1_proto import Frame, FrameBytes, Framer, Junk, diagnose, motion, spec
+from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.frames import AlarmAnswer
 
 from .axis import AxisEstimate
-from .chunk import DEVICE, HOST, Chunk
 from .records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
-NO_ANSWER_TIMEOUT_S: Final = 1.0  # PROTOCOL.md silent item 17
+NO_ANSWER_TIMEOUT_S: Final = 1.0  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
 
 # kinds of queue entries
@@ -122,10 +122,10 @@ class _Dedup:
     """Violation codes (each once) with their explanations."""
 
     def __init__(self) -> None:
-        self.codes: list[str] = []
+        self.codes: list[spec.ViolationCode] = []
         self.details: list[str] = []
 
-    def add(self, code: str, detail: str) -> None:
+    def add(self, code: spec.ViolationCode, detail: str) -> None:
         if code not in self.codes:
             self.codes.append(code)
         self.details.append(detail)

@@ -1,6 +1,6 @@
 """What the sniffer can tell about the axis from the line, to give a move a fair ``no-answer`` deadline.
 
-PROTOCOL.md silent item 17: a move's answer may take its estimated move time, doubled, plus the plain
+docs/protocol.md silent item 17: a move's answer may take its estimated move time, doubled, plus the plain
 timeout. The estimate uses ``xac1_proto.motion`` (silent item 15) with what the answers revealed: the
 current position (0RC, 0MP and 0MV answers; ``FFFFFF`` means unknown) and the position table (0RP,
 0WP, 0WC and 0MP answers). Whatever is unknown is assumed at its worst, so an estimate is never short

@@ -4,7 +4,7 @@ How it works. A live tap is read with ``PARMRK`` on (``taps.configure_raw(mark_e
 kernel then delivers a byte received with a framing (or parity) error as ``FF 00 X``, a break as
 ``FF 00 00``, and a real ``FF`` byte doubled as ``FF FF``. ``MarkDecoder.feed`` undoes that: clean runs
 come out as ``(bytes, None)``, each marked byte on its own as ``(X, reason)``. A mark cut by a read is
-held until the next read. The XA-C1 line has no parity bit (PROTOCOL.md "Line": 8N1), so a
+held until the next read. The XA-C1 line has no parity bit (docs/protocol.md "Line": 8N1), so a
 mark is a framing error, or a break when its byte is ``00`` (the kernel cannot tell those two apart).
 """
 

@@ -18,9 +18,10 @@ import time
 from collections.abc import Callable
 from typing import IO
 
+from xac1_proto.chunk import Chunk, Direction
+from xac1_proto.recording import RecordingWriter
+
 from .analyzer import Analyzer
-from .chunk import Chunk, Direction
-from .io.recording import RecordingWriter
 from .order import CausalOrder
 from .records import Record
 from .taps import PortGone, ReadOnlyPort

@@ -20,7 +20,7 @@ from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import replace
 
-from .chunk import DEVICE, HOST, Chunk, Direction
+from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 
 REORDER_WINDOW_S = 0.1
 

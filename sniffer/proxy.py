@@ -20,7 +20,8 @@ from typing import IO, Protocol
 
 import serial
 
-from .chunk import DEVICE, HOST, Chunk
+from xac1_proto.chunk import DEVICE, HOST, Chunk
+
 from .live import TICK_S, Clock, Session
 from .taps import PortGone, configure_raw
 

@@ -15,8 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from xac1_proto import Frame, spec
-
-from .chunk import Direction
+from xac1_proto.chunk import Direction
 
 
 def _round_t(t: float | None) -> float | None:
@@ -51,7 +50,7 @@ class FrameRecord:
     raw: bytes
     header: str | None
     frame: Frame | None
-    violations: tuple[str, ...] = ()
+    violations: tuple[spec.ViolationCode, ...] = ()
     details: tuple[str, ...] = ()
     reply_to: int | None = None
     latency_s: float | None = None
@@ -91,7 +90,7 @@ class JunkRecord:
     dir: Direction
     raw: bytes
     reason: str
-    violations: tuple[str, ...] = ("garbage",)
+    violations: tuple[spec.ViolationCode, ...] = ("garbage",)
     details: tuple[str, ...] = ()
     line_errors: tuple[str, ...] = ()
 
@@ -118,7 +117,7 @@ class TimeoutRecord:
     header: str | None
     waited_s: float | None
     details: tuple[str, ...] = ()
-    violations: tuple[str, ...] = ("no-answer",)
+    violations: tuple[spec.ViolationCode, ...] = ("no-answer",)
     dir: Direction = "host"
 
     type = "timeout"

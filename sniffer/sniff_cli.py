@@ -37,8 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def make_session(args: argparse.Namespace, source: str):  # -> live.Session (import kept lazy)
     import sys
 
+    from xac1_proto.recording import RecordingWriter
+
     from .analyzer import Analyzer
-    from .io.recording import RecordingWriter
     from .live import Session
     from .view import make_view
 

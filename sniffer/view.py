@@ -3,7 +3,7 @@
 ``make_view("text"|"jsonl", stream)`` gives an object with ``write(record)`` and ``summary(dict)``.
 The text view prints one line per record (time, record number, direction, the raw bytes with escapes,
 the decoded frame, and for answers which command they answer and the latency), then one line per
-violation with its PROTOCOL.md meaning and the detail; errors in red, notices in yellow. Colour is on
+violation with its docs/protocol.md meaning and the detail; errors in red, notices in yellow. Colour is on
 when the stream is a terminal (``color`` forces it). ``xac1 sniff``, ``xac1 proxy`` and ``xac1 decode``
 share these.
 """
@@ -99,11 +99,11 @@ class TextView:
 
 
 def violation_lines(record: Record) -> list[str]:
-    """One line per violation code of a record: code, PROTOCOL.md meaning, the detail."""
+    """One line per violation code of a record: code, docs/protocol.md meaning, the detail."""
     out = []
     details = list(record.details)
     for code in record.violations:
-        severity, meaning = spec.VIOLATIONS.get(code, (spec.ERROR, "?"))
+        severity, meaning = spec.VIOLATIONS[code]
         colour = "yellow" if severity == spec.NOTICE else "red"
         suffix = f" ({code})"
         mine = [d.removesuffix(suffix) for d in details if d.endswith(suffix)]
@@ -140,7 +140,7 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
     if not violations:
         lines.append("  [green]no violations[/]")
     for code, count in violations.items():
-        severity, meaning = spec.VIOLATIONS.get(code, (spec.ERROR, "?"))
+        severity, meaning = spec.VIOLATIONS[code]
         colour = "yellow" if severity == spec.NOTICE else "red"
         lines.append(f"  [{colour}]{code}[/] x{count}: {escape(meaning)}")
     return lines

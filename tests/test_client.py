@@ -64,7 +64,7 @@ KINDS = ["pty", "xac1sim"]
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_every_method(kind):
-    """Each command method sends its frame and returns the decoded answer (PROTOCOL.md "Frames",
+    """Each command method sends its frame and returns the decoded answer (docs/protocol.md "Frames",
     silent items 6, 7, 8, 9)."""
     with connect(kind) as (c, _):
         assert c.read_version() == fr.ReadVersionAnswer(version="100")
@@ -89,7 +89,7 @@ def test_every_method(kind):
 @pytest.mark.parametrize("kind", KINDS)
 def test_latched_alarm_until_reset(kind):
     """An alarm is latched: every command gets the alarm answer until 0%C, which clears it
-    (PROTOCOL.md "Behaviour the vendor text states"); AlarmError carries the code and its meaning."""
+    (docs/protocol.md "Behaviour the vendor text states"); AlarmError carries the code and its meaning."""
     with connect(kind) as (c, device):
         device.inject(lambda m, t: m.raise_alarm(spec.ALARM_MEMORY_RW, t))
         for _ in range(2):
@@ -105,7 +105,7 @@ def test_latched_alarm_until_reset(kind):
 @pytest.mark.parametrize("kind", KINDS)
 def test_emergency_stop_survives_reset(kind):
     """0%C does not clear emergency stop (0E); releasing the stop input does, and the axis must home
-    again (PROTOCOL.md "Behaviour the vendor text states", silent item 3)."""
+    again (docs/protocol.md "Behaviour the vendor text states", silent item 3)."""
     with connect(kind) as (c, device):
         c.home()
         device.inject(lambda m, t: m.set_estop(True, t))
@@ -133,7 +133,7 @@ def test_move_failure_alarm_forgets_position():
 @pytest.mark.parametrize("kind", KINDS)
 def test_storm_guard_halts_until_rearm(kind):
     """After 5 communication-error answers in a row (the reset answer does not end the run) the client
-    sends nothing more until rearm() (PROTOCOL.md host duty; silent item 1: malformed -> 0%%01)."""
+    sends nothing more until rearm() (docs/protocol.md host duty; silent item 1: malformed -> 0%%01)."""
     sent: list[bytes] = []
     with connect(kind, on_traffic=lambda d, data, t: sent.append(data) if d == "host" else None) as (c, _):
         for i in range(4):
@@ -223,7 +223,7 @@ def test_long_move_at_real_time_does_not_time_out():
 
 def test_protocol_errors_raise_with_code_and_raw():
     """Answers that break the protocol raise ProtocolError (code, raw bytes); transact returns them
-    with their violations instead (PROTOCOL.md "Violation codes")."""
+    with their violations instead (docs/protocol.md "Violation codes")."""
     cases = [("wrong-length", lambda c: c.read_version(), "bad-length"),
              ("echo-differs", lambda c: c.write_outputs(1), "echo-mismatch"),
              ("wrong-n", lambda c: c.read_point(3), "answer-mismatch"),

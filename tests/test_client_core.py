@@ -12,7 +12,7 @@ from xac1_proto import frames as fr
 from xac1_proto.exchange import Exchange, StormGuard, answer_or_raise, judge_answer
 from xac1_proto.movewait import FULL_STROKE, MoveBudget
 
-VENDOR = [  # PROTOCOL.md "Frames": vendor examples (command, answer)
+VENDOR = [  # docs/protocol.md "Frames": vendor examples (command, answer)
     (b"0RP3\r\n", b"0RP39302012345\r\n"),
     (b"0WP19302012345\r\n", b"0WP19302012345\r\n"),
     (b"0RV\r\n", b"0RV100\r\n"),
@@ -25,13 +25,13 @@ def codes(violations):
 
 @pytest.mark.parametrize(("sent", "raw"), VENDOR)
 def test_vendor_examples_are_clean(sent, raw):
-    """The vendor's example exchanges break no rule (PROTOCOL.md "Frames")."""
+    """The vendor's example exchanges break no rule (docs/protocol.md "Frames")."""
     frame, violations = judge_answer(sent, raw)
     assert violations == [] and frame is not None and frame.to_bytes() == raw
 
 
 def test_answer_to_another_command_is_answer_mismatch():
-    """An answer of another command is `answer-mismatch` (PROTOCOL.md "Violation codes")."""
+    """An answer of another command is `answer-mismatch` (docs/protocol.md "Violation codes")."""
     _, violations = judge_answer(b"0RV\r\n", b"0RS02\r\n")
     assert codes(violations) == ["answer-mismatch"]
 
@@ -58,7 +58,7 @@ def test_garbage_and_grammar_violations_are_kept():
 @given(command=frames("command"), answer=frames("answer"))
 def test_mismatch_iff_other_header(command, answer):
     """Any well-formed answer: the alarm answer fits every command; otherwise the header must be the
-    command's (PROTOCOL.md "Frames": "alarm answer (to any command)")."""
+    command's (docs/protocol.md "Frames": "alarm answer (to any command)")."""
     _, violations = judge_answer(command.to_bytes(), answer.to_bytes())
     other = answer.header not in (command.header, spec.ALARM_HEADER)
     assert ("answer-mismatch" in codes(violations)) == (other or (
@@ -89,7 +89,7 @@ answers = st.sampled_from([ALARM_01, fr.AlarmAnswer(code=8), fr.AlarmResetAnswer
 @settings(max_examples=100, deadline=None)
 @given(st.lists(answers, max_size=20), st.integers(1, 6))
 def test_storm_guard_counts_comm_errors_since_last_normal_answer(seq, limit):
-    """PROTOCOL.md host duty: count 0%%01 answers since the last normal answer (latched repeats
+    """docs/protocol.md host duty: count 0%%01 answers since the last normal answer (latched repeats
     count; the reset answer and other alarms neither count nor end the run); halt at the limit."""
     guard = StormGuard(limit)
     for answer in seq:

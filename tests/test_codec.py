@@ -1,4 +1,4 @@
-"""Strict and lenient decoding: check order, offsets, messages (PROTOCOL.md "Framing")."""
+"""Strict and lenient decoding: check order, offsets, messages (docs/protocol.md "Framing")."""
 
 from __future__ import annotations
 
@@ -86,7 +86,7 @@ def test_out_of_range_values_are_kept_leniently():
 
 @pytest.mark.parametrize("code,notice", [(2, "reserved-alarm"), (0x42, "unknown-alarm")])
 def test_alarm_codes_outside_the_meaning_table_are_notices_not_errors(code, notice):
-    """PROTOCOL.md silent item 13: any alarm code decodes; unlisted ones carry a notice."""
+    """docs/protocol.md silent item 13: any alarm code decodes; unlisted ones carry a notice."""
     wire = x.AlarmAnswer(code=code).to_bytes()
     assert x.parse(wire, "answer").code == code
     assert [v.code for v in x.diagnose(wire, "answer")[1]] == [notice]

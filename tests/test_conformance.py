@@ -51,7 +51,7 @@ def _answer(raw: bytes):
 
 def test_model_accepts_the_stated_answers():
     """The reference model accepts 0RC before homing, an echo, a latched alarm and its reset
-    (PROTOCOL.md "Behaviour the vendor text states")."""
+    (docs/protocol.md "Behaviour the vendor text states")."""
     m = _model()
     assert m.judge(ReadCurrent(), _answer(b"0RC00002FFFFFF\r\n"), b"0RC00002FFFFFF\r\n", []) == []
     assert m.judge(WriteOutputs(o=2), _answer(b"0WS22\r\n"), b"0WS22\r\n", []) == []

@@ -20,11 +20,11 @@ import pytest
 
 from conformance.evidence import Probe
 from conformance.settings import SettingsError, parse_points
-from sniffer.io.recording import read_recording
 from xac1_proto import spec
 from xac1_proto.client import Client
 from xac1_proto.exchange import Exchange
 from xac1_proto.frames import ReadVersion
+from xac1_proto.recording import read_recording
 from xac1_proto.sim import DeviceModel, SimConfig, serve_tcp
 from xac1_proto.sim.model import PointData
 
@@ -79,7 +79,7 @@ def written_points(log: Path) -> set[int]:
 
 def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     """On a real device (not xac1sim://) the suite writes only points that held data, restores them
-    exactly, leaves never-written points never written (PROTOCOL.md silent item 6), and skips the checks
+    exactly, leaves never-written points never written (docs/protocol.md silent item 6), and skips the checks
     that need a third point with a reason naming the option to pass, in the terminal and the report."""
     url, state, log = sim_process
     before = read_table(url)

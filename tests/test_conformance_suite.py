@@ -42,7 +42,7 @@ EXPECTED = {
     "wrong-n": "test_read_point_carries_n",
     "estop-cleared": "test_estop_survives_reset",
 }
-# every PROTOCOL.md silent point set to another choice than the simulator's default
+# every docs/protocol.md silent point set to another choice than the simulator's default
 OTHER_CHOICES = SimConfig(
     time_scale=0, accept_lowercase=True, estop_rehome=False, point_move_sets_outputs=False,
     discard_during_move=False, cm0_sticky=True, turnaround_s=0.005, malformed_alarm=0x07,
@@ -127,7 +127,7 @@ def test_deviation_fails_the_right_check(deviation_runs, deviation):
 
 
 def test_other_silent_choices_still_pass_over_tcp(tmp_path):
-    """Against `socket://` with other choices on every silent point (PROTOCOL.md "Where the vendor text is
+    """Against `socket://` with other choices on every silent point (docs/protocol.md "Where the vendor text is
     silent"), the suite still passes; afterwards the points and OUT ports are as they were."""
     with serve_tcp(OTHER_CHOICES) as sim:
         before = read_table(sim.url)

@@ -33,7 +33,7 @@ ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|\x08")
     ("status", [fr.ReadCurrent(), fr.ReadOutputs()], False),
 ])
 def test_named_commands_build_their_frames(line, frames, moves):
-    """Each named command builds the frames of PROTOCOL.md "Frames"; moving ones are flagged."""
+    """Each named command builds the frames of docs/protocol.md "Frames"; moving ones are flagged."""
     plan = parse_line(line)
     assert plan is not None and list(plan.frames) == frames and plan.moves == moves
 

@@ -1,6 +1,6 @@
 """``xac1 decode``: captures made by the real tools decode to the same frames and violations; the
 gallery decodes with no options; broken files give located messages and partial results, never a
-traceback (issue: offline decode; PROTOCOL.md "Violation codes")."""
+traceback (issue: offline decode; docs/protocol.md "Violation codes")."""
 
 from __future__ import annotations
 

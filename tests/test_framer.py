@@ -1,4 +1,4 @@
-"""The sans-IO framer: resync, bounds, byte accounting, chunking invariance (PROTOCOL.md "Framing")."""
+"""The sans-IO framer: resync, bounds, byte accounting, chunking invariance (docs/protocol.md "Framing")."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The grammar against the vendor's examples and byte counts (PROTOCOL.md "Frames", "Fields")."""
+"""The grammar against the vendor's examples and byte counts (docs/protocol.md "Frames", "Fields")."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import xac1_proto as x
 from xac1_proto import grammar, spec
 
-# PROTOCOL.md "Frames", vendor examples (CR LF added): (wire, role, class, fields)
+# docs/protocol.md "Frames", vendor examples (CR LF added): (wire, role, class, fields)
 VENDOR_EXAMPLES = [
     (b"0RP3\r\n", "command", x.ReadPoint, {"n": 3}),
     (b"0RP39302012345\r\n", "answer", x.ReadPointAnswer,
@@ -101,7 +101,7 @@ def test_building_out_of_range_fields_raises_field_range(cls, kw, label):
 
 
 def test_move_point_accepts_zero_for_homing_but_read_point_does_not():
-    """0MP N is 0-F (0 = homing); 0RP, 0WP, 0WC take 1-F (PROTOCOL.md "Fields")."""
+    """0MP N is 0-F (0 = homing); 0RP, 0WP, 0WC take 1-F (docs/protocol.md "Fields")."""
     assert x.MovePoint(n=0).to_bytes() == b"0MP0\r\n"
     for cls in (x.ReadPoint, x.StoreCurrent):
         with pytest.raises(x.FrameError):

@@ -1,5 +1,5 @@
 """``xac1 proxy`` forwards every byte unchanged both ways (hypothesis over chunkings) and decodes the
-exchange on the way (PROTOCOL.md "Framing": answers pair first in, first out)."""
+exchange on the way (docs/protocol.md "Framing": answers pair first in, first out)."""
 
 from __future__ import annotations
 

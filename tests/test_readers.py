@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sniffer.chunk import Chunk
 from sniffer.io import interceptty, jpnevulator, jsonl, pcap, saleae, sigrok, socat, spy
 from sniffer.io.base import FormatError, Report, Source
 from sniffer.io.registry import Capture, detect
+from xac1_proto.chunk import Chunk
 
 
 def read(module, path: Path, **kw) -> tuple[list[Chunk], Report]:

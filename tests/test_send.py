@@ -17,7 +17,7 @@ def send(port: str, *commands: str) -> subprocess.CompletedProcess[str]:
 
 def test_send_over_a_pty_prints_both_directions_decoded():
     """Each command is shown as sent and its answer as received, decoded, with the latency; CR LF is
-    added to a command typed without it (PROTOCOL.md "Framing")."""
+    added to a command typed without it (docs/protocol.md "Framing")."""
     with serve_pty(SimConfig(time_scale=0)) as sim:
         r = send(sim.path, "0RV", "0WP19302012345", r"0RP1\r\n")
     assert r.returncode == 0, r.stderr
@@ -30,7 +30,7 @@ def test_send_over_a_pty_prints_both_directions_decoded():
 
 def test_send_alarm_exits_1_with_meaning_and_stops():
     """An alarm answer: its code and meaning, exit 1, later commands not sent (0WC before homing is
-    alarm 08, PROTOCOL.md silent item 4)."""
+    alarm 08, docs/protocol.md silent item 4)."""
     r = send(SIM, "0WC1", "0RV")
     assert r.returncode == 1
     assert "ALARM 08: move position setting error" in r.stdout and "alarm 08" in r.stderr

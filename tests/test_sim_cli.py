@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from sniffer.io.recording import read_recording
+from xac1_proto.recording import read_recording
 from xac1_proto.sim.model import PointData
 from xac1_proto.sim.state import StateFileError, load_state, save_state
 

@@ -26,7 +26,7 @@ def frame(cmd: x.Frame) -> bytes:
 
 
 def test_vendor_examples() -> None:
-    """PROTOCOL.md "Frames" vendor examples: 0WP echoes, 0RP reads back, 0RV answers 0RV100."""
+    """docs/protocol.md "Frames" vendor examples: 0WP echoes, 0RP reads back, 0RV answers 0RV100."""
     m = DeviceModel(INSTANT)
     assert talk(m, b"0WP39302012345\r\n") == b"0WP39302012345\r\n"
     assert talk(m, b"0RP3\r\n") == b"0RP39302012345\r\n"
@@ -34,7 +34,7 @@ def test_vendor_examples() -> None:
 
 
 def test_rc_before_homing_then_moves() -> None:
-    """PROTOCOL.md "Behaviour": 0RC before homing is N/V/A 0, Pos FFFFFF; 0MP homes first; silent items
+    """docs/protocol.md "Behaviour": 0RC before homing is N/V/A 0, Pos FFFFFF; 0MP homes first; silent items
     7, 8, 9 for 0RC after homing, a point move and a direct move."""
     m = DeviceModel(INSTANT)
     assert talk(m, b"0WS22\r\n") == b"0WS22\r\n"
@@ -49,7 +49,7 @@ def test_rc_before_homing_then_moves() -> None:
 
 
 def test_move_homes_first_when_not_homed() -> None:
-    """PROTOCOL.md "Behaviour": 0MP/0MV home first when the axis has not been homed, then move."""
+    """docs/protocol.md "Behaviour": 0MP/0MV home first when the axis has not been homed, then move."""
     m = DeviceModel(SimConfig(time_scale=1.0, turnaround_s=0.0))
     m.receive(b"0MV3C3001388\r\n", 0.0)
     (out,) = [o for o in [m.outbox] if o.next_due is not None]
@@ -60,7 +60,7 @@ def test_move_homes_first_when_not_homed() -> None:
 
 
 def test_alarm_latch_and_reset() -> None:
-    """PROTOCOL.md "Behaviour" + silent item 1: a malformed command latches 01; every command is then
+    """docs/protocol.md "Behaviour" + silent item 1: a malformed command latches 01; every command is then
     answered 0%%01; 0%C answers 0%C00 and normal answers return."""
     m = DeviceModel(INSTANT)
     assert talk(m, b"0RP3\n") == ALARM_01
@@ -72,7 +72,7 @@ def test_alarm_latch_and_reset() -> None:
 
 
 def test_estop_survives_reset() -> None:
-    """PROTOCOL.md "Behaviour": 0%C clears every alarm but emergency stop; silent item 3: 0%C answers
+    """docs/protocol.md "Behaviour": 0%C clears every alarm but emergency stop; silent item 3: 0%C answers
     0%%0E, and after release the axis must home again (0RC answers FFFFFF)."""
     m = DeviceModel(INSTANT)
     talk(m, b"0MP0\r\n")
@@ -119,7 +119,7 @@ def test_line_buffered_until_lf() -> None:
 
 
 def test_wire_timing_paces_bytes() -> None:
-    """PROTOCOL.md "Line" + silent item 17: with wire timing, the answer's first byte comes after the
+    """docs/protocol.md "Line" + silent item 17: with wire timing, the answer's first byte comes after the
     turnaround and each next byte one byte time (1.0417 ms) later."""
     m = DeviceModel(SimConfig(time_scale=1.0, wire_timing=True))
     m.receive(b"0RV\r\n", 0.0)
@@ -131,7 +131,7 @@ def test_wire_timing_paces_bytes() -> None:
 
 
 def test_faults_on_next_move_and_memory() -> None:
-    """PROTOCOL.md "Alarms": injected faults answer 09 (limit, after the move), 0B (homing), 0A (pulse),
+    """docs/protocol.md "Alarms": injected faults answer 09 (limit, after the move), 0B (homing), 0A (pulse),
     04 (memory write), 06 (memory data), each latched until 0%C."""
     m = DeviceModel(INSTANT)
     talk(m, b"0WP19302012345\r\n")
@@ -215,7 +215,7 @@ def test_line_faults_reproducible_by_seed() -> None:
 
 
 def test_deviation_table_is_documented() -> None:
-    """Every deviation names the rule it breaks and the PROTOCOL.md section."""
+    """Every deviation names the rule it breaks and the docs/protocol.md section."""
     for name, (rule, section) in DEVIATIONS.items():
         assert rule and section, name
 
@@ -238,7 +238,7 @@ def test_each_deviation_breaks_its_rule(name: str) -> None:
 
 
 def test_deviation_details() -> None:
-    """Spot checks of deviations against the rule each breaks (PROTOCOL.md "Framing", "Frames")."""
+    """Spot checks of deviations against the rule each breaks (docs/protocol.md "Framing", "Frames")."""
     def first(dev: str, cmd: bytes) -> bytes:
         return talk(DeviceModel(INSTANT.replace(deviations=frozenset({dev}))), cmd)
 

@@ -57,7 +57,7 @@ def open_sim(kind: str, config: SimConfig = INSTANT) -> Iterator[serial.SerialBa
 
 class DeviceRules(RuleBasedStateMachine):
     """Random valid and malformed commands over a real transport; every answer is checked against the
-    rules PROTOCOL.md states (byte counts, echoes, latching, reset, 0RC before homing, read-back after
+    rules docs/protocol.md states (byte counts, echoes, latching, reset, 0RC before homing, read-back after
     write, position after moves), with a reference that knows only those rules."""
 
     KIND = "pty"
@@ -88,7 +88,7 @@ class DeviceRules(RuleBasedStateMachine):
 
     @initialize()
     def power_on(self) -> None:
-        """PROTOCOL.md "Behaviour": 0RC before homing answers N, V, A 0 and Pos FFFFFF."""
+        """docs/protocol.md "Behaviour": 0RC before homing answers N, V, A 0 and Pos FFFFFF."""
         a = self.send(x.ReadCurrent())
         assert (a.n, a.v, a.a, a.pos) == (0, 0, 0, spec.UNKNOWN_POSITION)
 
@@ -179,7 +179,7 @@ class DeviceRules(RuleBasedStateMachine):
 
     @rule()
     def reset(self) -> None:
-        """PROTOCOL.md "Frames": 0%C answers 0%C00 and clears the alarm."""
+        """docs/protocol.md "Frames": 0%C answers 0%C00 and clears the alarm."""
         assert self.send(x.AlarmReset()) == x.AlarmResetAnswer()
         self.latched = None
 

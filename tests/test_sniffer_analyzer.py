@@ -1,4 +1,4 @@
-"""The conversation analyzer on scripted chunks: each rule of PROTOCOL.md "Violation codes" fires on the
+"""The conversation analyzer on scripted chunks: each rule of docs/protocol.md "Violation codes" fires on the
 record the analyzer's docstring names, and nothing else fires; chunking never changes the verdicts."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 from strategies import frames
 
 from sniffer.analyzer import Analyzer, analyze
-from sniffer.chunk import Chunk
 from sniffer.records import FrameRecord, JunkRecord, TimeoutRecord
+from xac1_proto.chunk import Chunk
 
 H, D = "host", "device"
 
@@ -33,7 +33,7 @@ def all_codes(records):
 
 def test_clean_exchange_pairs_and_measures_latency():
     """A command and its answer pair first in, first out; latency is the command's last byte to the
-    answer's first byte (PROTOCOL.md "Violation codes": answers pair first in, first out)."""
+    answer's first byte (docs/protocol.md "Violation codes": answers pair first in, first out)."""
     recs = run([(10.0, H, b"0RP3\r\n"), (10.0025, D, b"0RP39302012345\r\n")])
     assert [r.type for r in recs] == ["frame", "frame"]
     cmd, ans = recs
@@ -49,7 +49,7 @@ def test_clean_exchange_pairs_and_measures_latency():
 
 def test_letter_o_then_alarm_then_no_reset():
     """letter-o is a frame-level violation on the command; the host going on after the alarm answer without
-    a reset is alarm-ignored on the next command (PROTOCOL.md "Violation codes")."""
+    a reset is alarm-ignored on the next command (docs/protocol.md "Violation codes")."""
     recs = run([(0, H, b"ORP3\r\n"), (0.01, D, b"0%%01\r\n"), (0.1, H, b"0RV\r\n"), (0.11, D, b"0%%01\r\n"),
                 (0.2, H, b"0%C\r\n"), (0.21, D, b"0%C00\r\n"),
                 (0.3, H, b"0RV\r\n"), (0.31, D, b"0RV100\r\n")])
@@ -58,7 +58,7 @@ def test_letter_o_then_alarm_then_no_reset():
 
 def test_echo_mismatch_and_answer_mismatch():
     """An echo answer with other fields is echo-mismatch; an answer of another command or another N is
-    answer-mismatch (PROTOCOL.md "Violation codes")."""
+    answer-mismatch (docs/protocol.md "Violation codes")."""
     recs = run([(0, H, b"0WS12\r\n"), (0.01, D, b"0WS02\r\n"), (0.1, H, b"0RP3\r\n"),
                 (0.11, D, b"0RP49302012345\r\n"), (0.2, H, b"0RC\r\n"), (0.21, D, b"0RS02\r\n"),
                 (0.3, H, b"0RV\r\n"), (0.31, D, b"0%C00\r\n")])
@@ -68,14 +68,14 @@ def test_echo_mismatch_and_answer_mismatch():
 
 def test_lowercase_echo_is_only_a_notice():
     """An echo compares decoded fields, so an upper-case echo of a lower-case command is no echo-mismatch;
-    lower case is the lowercase-hex notice (PROTOCOL.md "Framing")."""
+    lower case is the lowercase-hex notice (docs/protocol.md "Framing")."""
     recs = run([(0, H, b"0WP1930200abcd\r\n"), (0.01, D, b"0WP1930200ABCD\r\n")])
     assert codes(recs) == [(H, ("lowercase-hex",))]
 
 
 def test_unsolicited_and_no_answer():
     """An answer with nothing waiting is unsolicited-answer; a command whose 1 s passes unanswered gets a
-    no-answer timeout record (PROTOCOL.md silent item 17), and its late answer is unsolicited."""
+    no-answer timeout record (docs/protocol.md silent item 17), and its late answer is unsolicited."""
     recs = run([(0, D, b"0RV100\r\n"), (1.0, H, b"0RV\r\n"), (2.5, D, b"0RV100\r\n")])
     assert codes(recs) == [(D, ("unsolicited-answer",)), ("timeout", ("no-answer",)),
                            (D, ("unsolicited-answer",))]
@@ -85,7 +85,7 @@ def test_unsolicited_and_no_answer():
 
 def test_answer_that_starts_in_time_is_in_time():
     """The no-answer deadline applies to the answer's first byte: an answer begun before it and finished
-    after it pairs normally (PROTOCOL.md silent item 17)."""
+    after it pairs normally (docs/protocol.md silent item 17)."""
     recs = run([(0, H, b"0RV\r\n"), (0.99, D, b"0RV"), (1.2, D, b"100\r\n")])
     assert all_codes(recs) == [] and recs[-1].reply_to == 0
 
@@ -116,7 +116,7 @@ def test_move_gets_a_longer_deadline():
 
 def test_command_during_motion_and_overlap():
     """A host frame while a move waits is command-during-motion (not also overlapping-command); a host
-    frame while another command waits is overlapping-command (PROTOCOL.md "Behaviour the vendor text
+    frame while another command waits is overlapping-command (docs/protocol.md "Behaviour the vendor text
     states"). The discarded command needs no answer."""
     recs = run([(0, H, b"0MP0\r\n"), (0.5, H, b"0RC\r\n"), (2.0, D, b"0MP00002000000\r\n"),
                 (3.0, H, b"0RV\r\n"), (3.0, H, b"0RS\r\n"), (3.01, D, b"0RV100\r\n"), (3.02, D, b"0RS02\r\n"),
@@ -127,7 +127,7 @@ def test_command_during_motion_and_overlap():
 
 def test_storm_after_fifth_comm_error():
     """After the 5th 0%%01 answer in a row (latched repeats count, a reset answer does not end the run)
-    any further command is comm-error-storm; a normal answer ends the run (PROTOCOL.md "Behaviour")."""
+    any further command is comm-error-storm; a normal answer ends the run (docs/protocol.md "Behaviour")."""
     script = []
     t = 0.0
     for _ in range(3):
@@ -150,7 +150,7 @@ def test_storm_after_fifth_comm_error():
 def test_latch_broken_and_estop_cleared():
     """A normal answer while a non-estop alarm is latched is latch-broken; 0%C00 while emergency stop is
     latched is estop-cleared; a normal answer under emergency stop means the input was released
-    (PROTOCOL.md silent item 3)."""
+    (docs/protocol.md silent item 3)."""
     recs = run([(0, H, b"0RV\r\n"), (0.01, D, b"0%%08\r\n"), (0.1, H, b"0RV\r\n"), (0.11, D, b"0RV100\r\n"),
                 (0.2, H, b"0%C\r\n"), (0.21, D, b"0%C00\r\n"), (0.3, H, b"0RV\r\n"), (0.31, D, b"0%%0E\r\n"),
                 (0.4, H, b"0%C\r\n"), (0.41, D, b"0%C00\r\n"),
@@ -221,7 +221,7 @@ def test_chunking_never_changes_records(cuts, timed):
                           st.floats(0, 0.5)), max_size=25))
 def test_garbage_never_crashes_and_every_byte_is_accounted(items):
     """Arbitrary bytes in both directions never raise; every byte fed comes out in exactly one frame or
-    junk record of its direction, in order (PROTOCOL.md "Violation codes": garbage)."""
+    junk record of its direction, in order (docs/protocol.md "Violation codes": garbage)."""
     t = 0.0
     chunks = []
     for d, data, dt in items:

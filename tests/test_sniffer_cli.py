@@ -18,8 +18,8 @@ from pathlib import Path
 
 from sniffer_wire import ScriptedHost, YCable
 
-from sniffer.io.recording import read_recording
 from xac1_proto.client import Client
+from xac1_proto.recording import read_recording
 from xac1_proto.sim import SimConfig, serve_pty
 
 WAIT_S = 10.0  # an upper bound for anything to happen; never reached unless something is broken
@@ -123,7 +123,7 @@ def no_traceback(cli: Cli) -> None:
 
 def test_sniff_live_jsonl_then_ctrl_c(tmp_path):
     """``xac1 sniff`` prints each exchange as it happens (JSON lines schema), Ctrl-C prints the summary
-    and exits 0, and the recording decodes to the very same records (PROTOCOL.md "Framing")."""
+    and exits 0, and the recording decodes to the very same records (docs/protocol.md "Framing")."""
     rec = tmp_path / "line.jsonl"
     with serve_pty(SimConfig(time_scale=0, wire_timing=True)) as sim, YCable(sim.path) as cable, \
             Cli("sniff", "--host-tap", cable.tap_paths["host"], "--device-tap", cable.tap_paths["device"],

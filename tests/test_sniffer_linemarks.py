@@ -1,5 +1,5 @@
 """Framing-error marks of a live tap (termios PARMRK) become ``Chunk.error`` on exactly the marked bytes,
-and a real FF byte, which the kernel doubles, is kept once (PROTOCOL.md "Line": 8N1, no parity)."""
+and a real FF byte, which the kernel doubles, is kept once (docs/protocol.md "Line": 8N1, no parity)."""
 
 from __future__ import annotations
 

@@ -1,14 +1,14 @@
 """When one poll finds several exchanges waiting on both taps (a sniffer that fell behind), they are
 merged back answer-first, so nothing is invented; host lines read alone stay together, so true
-back-to-back commands are still seen (PROTOCOL.md "Violation codes": overlapping-command)."""
+back-to-back commands are still seen (docs/protocol.md "Violation codes": overlapping-command)."""
 
 from __future__ import annotations
 
 from collections import Counter
 
 from sniffer.analyzer import Analyzer
-from sniffer.chunk import DEVICE, HOST, Chunk
 from sniffer.order import CausalOrder
+from xac1_proto.chunk import DEVICE, HOST, Chunk
 
 
 def _ordered():

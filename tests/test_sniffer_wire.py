@@ -1,5 +1,5 @@
 """The live sniffer on a real Y-cable of pseudo-terminals carrying the simulator and a host: scripted
-sloppy hosts and sloppy devices each produce exactly the expected violations (PROTOCOL.md "Violation
+sloppy hosts and sloppy devices each produce exactly the expected violations (docs/protocol.md "Violation
 codes"), and the sniffer never writes to a tap."""
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def line(config: SimConfig | None = None):
 
 def test_client_session_is_clean():
     """The project's client driving the simulator breaks no rule: no violation, every command answered,
-    latency measured (PROTOCOL.md "Frames")."""
+    latency measured (docs/protocol.md "Frames")."""
     with line(SimConfig(time_scale=0)) as (sim, cable, view), Client(cable.host_path) as client:
         client.read_version()
         client.write_point(1, 5, 2, 1, 0x1000)
@@ -149,7 +149,7 @@ SLOPPY_HOSTS = {
 
 @pytest.mark.parametrize("name", SLOPPY_HOSTS)
 def test_sloppy_host(name):
-    """Each sloppy host habit is named with its PROTOCOL.md violation code, and nothing else is."""
+    """Each sloppy host habit is named with its docs/protocol.md violation code, and nothing else is."""
     script, expected = SLOPPY_HOSTS[name]
     with line(SimConfig(time_scale=0.25)) as (sim, cable, view):
         host = ScriptedHost(cable.host_path)

@@ -3,7 +3,7 @@
 A thin I/O shell around sans-IO parts: ``Framer`` cuts the answer out of the byte stream,
 ``exchange.judge_answer`` decodes and checks it against the command, ``exchange.StormGuard`` keeps the
 host's duty to stop after communication errors in a row, and ``movewait.MoveBudget`` prices the
-timeout of a move (PROTOCOL.md "Behaviour the vendor text states").
+timeout of a move (docs/protocol.md "Behaviour the vendor text states").
 
 An exchange: bytes already waiting are read and reported as ``stale`` (a late answer to an earlier
 exchange must not pass for this one's); the command is written; bytes are read until the framer
@@ -110,7 +110,7 @@ class Client:
 
     @property
     def comm_errors_in_row(self) -> int:
-        """``0%%01`` answers since the last normal answer (PROTOCOL.md host duty)."""
+        """``0%%01`` answers since the last normal answer (docs/protocol.md host duty)."""
         return self._guard.in_row
 
     @property
@@ -228,7 +228,7 @@ class Client:
                 quiet_since = self.clock()
         return out
 
-    # ---- one method a command (PROTOCOL.md "Frames") ----
+    # ---- one method a command (docs/protocol.md "Frames") ----
 
     def _ask(self, command: Frame, kind: type[A], timeout: float | None = None) -> A:
         return cast(A, self.request(command, timeout))

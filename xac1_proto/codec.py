@@ -3,7 +3,7 @@
 ``diagnose`` is the lenient path (the sniffer's): it finds the header (tolerating a letter ``O``), then
 checks length and terminator, walks the layout (literals, then each field through its construct) and
 lists every deviation as a ``Violation`` with its byte offset, decoding whatever it can. ``parse`` is
-the strict path: the same walk, raising the first violation in PROTOCOL.md "Framing" order (header,
+the strict path: the same walk, raising the first violation in docs/protocol.md "Framing" order (header,
 length, terminator, the ``2``, fields). Alarm-code notices (``reserved-alarm``, ``unknown-alarm``) do
 not make a frame invalid: decoders accept any alarm code.
 """
@@ -183,7 +183,7 @@ def diagnose(data: bytes, role: str) -> tuple[Frame | None, list[Violation]]:
 
 def parse(data: bytes, role: str) -> Frame:
     """Decode one whole frame (CR LF included) strictly; raise ``FrameError`` on the first
-    violation in PROTOCOL.md "Framing" order."""
+    violation in docs/protocol.md "Framing" order."""
     frame, violations = diagnose(data, role)
     for v in violations:
         if v.code not in ("reserved-alarm", "unknown-alarm"):

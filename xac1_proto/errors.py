@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .spec import ViolationCode
 
 
 class XAC1Error(Exception):
@@ -11,9 +15,9 @@ class XAC1Error(Exception):
 
 @dataclass(frozen=True)
 class Violation:
-    """One deviation from the protocol: a PROTOCOL.md violation code, where, and what was wrong."""
+    """One deviation from the protocol: a docs/protocol.md violation code, where, and what was wrong."""
 
-    code: str
+    code: ViolationCode
     offset: int | None
     message: str
 
@@ -22,10 +26,10 @@ class Violation:
 
 
 class FrameError(XAC1Error, ValueError):
-    """A frame that breaks the grammar. ``.code`` is a PROTOCOL.md violation code, ``.offset`` the
+    """A frame that breaks the grammar. ``.code`` is a docs/protocol.md violation code, ``.offset`` the
     byte offset of the first bad byte (None when the frame is built, not parsed)."""
 
-    def __init__(self, code: str, offset: int | None, message: str, data: bytes | None = None):
+    def __init__(self, code: ViolationCode, offset: int | None, message: str, data: bytes | None = None):
         super().__init__(message)
         self.code = code
         self.offset = offset
@@ -44,7 +48,7 @@ class ProtocolError(XAC1Error):
     """The device's answer broke the protocol (wrong length, missing ``2``, echo differs, answer to
     another command...). ``.code`` is the violation code, ``.raw`` the bytes as received."""
 
-    def __init__(self, code: str, message: str, raw: bytes = b"",
+    def __init__(self, code: ViolationCode, message: str, raw: bytes = b"",
                  violations: list[Violation] | None = None):
         super().__init__(message)
         self.code = code
@@ -74,4 +78,4 @@ class ResponseTimeout(XAC1Error, TimeoutError):
 
 class CommunicationHalted(XAC1Error):
     """The vendor's host duty: after too many communication-error answers in a row the client refuses
-    to send until ``rearm()`` (PROTOCOL.md "Behaviour the vendor text states")."""
+    to send until ``rearm()`` (docs/protocol.md "Behaviour the vendor text states")."""

@@ -2,12 +2,12 @@
 
 The client sends a command, feeds what comes back through the ``Framer`` and stops at the first
 ``FrameBytes``: that is the answer. ``judge_answer`` decodes it leniently (``diagnose``) and adds the
-checks that need the command (PROTOCOL.md "Violation codes"): an answer to another command or another
+checks that need the command (docs/protocol.md "Violation codes"): an answer to another command or another
 N is ``answer-mismatch``; an echo answer (0WP, 0MV, 0WS, 0CM) that differs from its command byte for
 byte is ``echo-mismatch``. The alarm answer may answer any command. Bytes that formed no frame before
 the answer are ``garbage``. Nothing here touches a port or a clock: times are passed in.
 
-``StormGuard`` is the vendor's host duty (PROTOCOL.md "Behaviour the vendor text states"): it counts
+``StormGuard`` is the vendor's host duty (docs/protocol.md "Behaviour the vendor text states"): it counts
 ``0%%01`` answers since the last normal answer (latched repeats count; the reset answer ``0%C00`` and
 other alarm answers neither count nor end the run) and halts once the count reaches the limit.
 """

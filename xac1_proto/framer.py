@@ -1,4 +1,4 @@
-"""Sans-IO stream framer: bytes in (with a timestamp), frames and junk out (PROTOCOL.md "Framing").
+"""Sans-IO stream framer: bytes in (with a timestamp), frames and junk out (docs/protocol.md "Framing").
 
 A frame starts at a plausible frame start and ends at LF. A plausible start is the digit ``0`` followed
 by a header-like byte (a letter or ``%``), or the letter ``O`` followed by a known header's last two

@@ -1,4 +1,4 @@
-"""Frames as inert data: one frozen dataclass per frame kind of PROTOCOL.md "Frames".
+"""Frames as inert data: one frozen dataclass per frame kind of docs/protocol.md "Frames".
 
 A frame knows its header, role and fields, checks its field ranges when built, and turns itself into
 wire bytes through the construct grammar. Behaviour (the device model, the conversation checker) lives
@@ -117,7 +117,7 @@ class Frame:
         return " ".join(parts)
 
 
-# ---- commands (PROTOCOL.md "Frames", rows 1-10 and the alarm reset) ----
+# ---- commands (docs/protocol.md "Frames", rows 1-10 and the alarm reset) ----
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ReadPoint(Frame):

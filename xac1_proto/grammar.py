@@ -3,7 +3,7 @@
 Each struct covers a whole frame, header to CR LF, and ends with ``Terminated`` so that trailing bytes
 are never ignored. Fields are small adapters over ``Bytes``: upper-case hex or decimal digits of a fixed
 width. ``parse``/``diagnose`` in ``codec.py`` check a frame's shape first (header, length, terminator,
-literals: PROTOCOL.md "Framing") and decode each field with the same field constructs; ``Frame.to_bytes``
+literals: docs/protocol.md "Framing") and decode each field with the same field constructs; ``Frame.to_bytes``
 builds with the whole-frame struct. Nothing else in the package knows a frame's layout.
 """
 

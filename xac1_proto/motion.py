@@ -1,6 +1,6 @@
 """Motion timing shared by the simulator (how long a move takes) and the client (how long to wait).
 
-The vendor's speed tables are missing (PROTOCOL.md silent item 15): by default speed number V n moves
+The vendor's speed tables are missing (docs/protocol.md silent item 15): by default speed number V n moves
 at n x 1,000 pulses/s, direct-move speed vel n at n x 500 pulses/s, and homing at 10,000 pulses/s with
 the mid ramp. A move follows a trapezoidal profile whose ramp (0 to full speed) takes the acceleration
 number's time (1: 400 ms, 2: 200 ms, 3: 100 ms); a move too short to reach full speed is triangular.

@@ -1,4 +1,4 @@
-"""The XA-C1 protocol's tables, as data (PROTOCOL.md "Fields", "Frames", "Alarms", "Violation codes").
+"""The XA-C1 protocol's tables, as data (docs/protocol.md "Fields", "Frames", "Alarms", "Violation codes").
 
 Everything else derives from these tables: the construct grammar (``grammar.py``) builds one struct per
 frame layout, the frame classes take their field ranges from here, and the lenient decoder walks the
@@ -17,7 +17,7 @@ COMMAND: Final = "command"
 ANSWER: Final = "answer"
 ROLES: Final = (COMMAND, ANSWER)
 
-LEAD: Final = b"0"  # PROTOCOL.md "Framing": the digit zero starts every frame
+LEAD: Final = b"0"  # docs/protocol.md "Framing": the digit zero starts every frame
 LETTER_O: Final = b"O"  # the PDF artefact a sloppy host may really send
 HEADER_WIDTH: Final = 3
 TERMINATOR: Final = b"\r\n"
@@ -55,7 +55,7 @@ class Literal:
     """Characters that must appear verbatim; ``code`` is the violation when they do not."""
 
     text: str
-    code: str
+    code: ViolationCode
 
     @property
     def width(self) -> int:
@@ -77,7 +77,7 @@ FIELDS: Final[dict[str, FieldSpec]] = {
     )
 }
 
-TWO: Final = Literal("2", "missing-2")  # PROTOCOL.md "Fields": the mandatory literal 2
+TWO: Final = Literal("2", "missing-2")  # docs/protocol.md "Fields": the mandatory literal 2
 RESET_OK: Final = Literal("00", "field-range")  # the reset answer 0%C00
 
 Item = str | Literal
@@ -135,7 +135,7 @@ def _width(item: Item) -> int:
 
 _POINT_DATA: Final = ("n", "v", "a", "o", TWO, "pos")
 
-# PROTOCOL.md "Frames". One row a frame kind; the byte counts follow from the layouts.
+# docs/protocol.md "Frames". One row a frame kind; the byte counts follow from the layouts.
 FRAME_SPECS: Final[tuple[FrameSpec, ...]] = (
     FrameSpec("0RP", COMMAND, ("n",), "read movement data of point N"),
     FrameSpec("0RP", ANSWER, _POINT_DATA, "movement data of point N"),
@@ -170,12 +170,15 @@ ALARM_HEADER: Final = "0%%"
 RESET_HEADER: Final = "0%C"
 MOVE_HEADERS: Final = frozenset({"0MP", "0MV"})
 
-# PROTOCOL.md "Behaviour the vendor text states" and "Fields".
+# docs/protocol.md "Behaviour the vendor text states" and "Fields".
 UNKNOWN_POSITION: Final = 0xFFFFFF
 ACCEL_RAMP_S: Final[dict[int, float]] = {1: 0.400, 2: 0.200, 3: 0.100}
 STORM_LIMIT: Final = 5  # communication-error answers in a row before the host must stop
+# docs/protocol.md silent item 17: how long a host (the client) and a watcher (the sniffer) wait for an
+# answer after a command's last byte, before moves are priced in. One default for every part.
+NO_ANSWER_TIMEOUT_S: Final = 1.0
 
-# PROTOCOL.md "Alarms". None: listed by the vendor with no meaning.
+# docs/protocol.md "Alarms". None: listed by the vendor with no meaning.
 ALARMS: Final[dict[int, str | None]] = {
     0x00: "no error",
     0x01: "communication error",
@@ -213,33 +216,87 @@ def alarm_meaning(code: int) -> str:
 ERROR: Final = "error"
 NOTICE: Final = "notice"
 
-# PROTOCOL.md "Violation codes": code -> (severity, meaning).
-VIOLATIONS: Final[dict[str, tuple[str, str]]] = {
-    "bad-length": (ERROR, "the frame's byte count is not the spec's"),
-    "bad-terminator": (ERROR, "the frame does not end with CR LF"),
-    "letter-o": (ERROR, "the frame starts with the letter O, not the digit 0"),
-    "lowercase-hex": (NOTICE, "hex digits in lower case (the vendor writes upper case)"),
-    "missing-2": (ERROR, "the mandatory character 2 is missing"),
-    "field-range": (ERROR, "a field is out of its range"),
-    "unknown-command": (ERROR, "the header is no command or answer of the spec"),
-    "garbage": (ERROR, "bytes that form no frame"),
-    "echo-mismatch": (ERROR, "an echo answer differs from its command"),
-    "answer-mismatch": (ERROR, "an answer of another command or another N"),
-    "unsolicited-answer": (ERROR, "an answer with no command waiting for it"),
-    "no-answer": (ERROR, "a command got no answer in time"),
-    "overlapping-command": (ERROR, "a new command before the previous answer"),
-    "command-during-motion": (ERROR, "a command sent while the axis moves"),
-    "alarm-ignored": (ERROR, "the host went on after an alarm answer without a reset"),
-    "comm-error-storm": (ERROR, "a command sent after too many communication errors in a row"),
-    "latch-broken": (ERROR, "a normal answer while an alarm should still be latched"),
-    "estop-cleared": (ERROR, "emergency stop cleared by an alarm reset"),
-    "reserved-alarm": (NOTICE, "alarm code 02, 03, 05 or 07 (no meaning in the vendor text)"),
-    "unknown-alarm": (NOTICE, "an alarm code the vendor does not list"),
-}
-NOTICES: Final = frozenset(c for c, (sev, _) in VIOLATIONS.items() if sev == NOTICE)
+Severity = TypingLiteral["error", "notice"]
+# Whose duty a violation checks: the host's, the device's, or whoever sent the bytes (a framing fault).
+Side = TypingLiteral["host", "device"]
+HOST_SIDE: Final = "host"
+DEVICE_SIDE: Final = "device"
+SENDER: Final = "sender"
+Duty = TypingLiteral["host", "device", "sender"]
 
-# Order in which strict parsing checks a frame (PROTOCOL.md "Framing"); the first failure is raised.
-CHECK_ORDER: Final[dict[str, int]] = {
+ViolationCode = TypingLiteral[
+    "bad-length", "bad-terminator", "letter-o", "lowercase-hex", "missing-2", "field-range",
+    "unknown-command", "garbage", "echo-mismatch", "answer-mismatch", "unsolicited-answer", "no-answer",
+    "overlapping-command", "command-during-motion", "alarm-ignored", "comm-error-storm",
+    "error-accepted", "latch-broken", "estop-cleared", "readback-mismatch", "reserved-alarm",
+    "unknown-alarm",
+]
+
+
+@dataclass(frozen=True)
+class ViolationSpec:
+    """One violation code of docs/protocol.md "Violation codes": severity, whose duty, meaning."""
+
+    code: ViolationCode
+    severity: Severity
+    duty: Duty
+    meaning: str
+    section: str  # the docs/protocol.md section that states the rule
+
+    def side(self, sender: Side) -> Side:
+        """Whose fault it is when found in bytes sent by ``sender``."""
+        return sender if self.duty == SENDER else self.duty  # type: ignore[return-value]
+
+
+_F, _B, _C = "Framing", "Behaviour the vendor text states", "Violation codes"
+
+# docs/protocol.md "Violation codes": one row a code; the order is the report order.
+VIOLATION_SPECS: Final[tuple[ViolationSpec, ...]] = (
+    ViolationSpec("bad-length", ERROR, SENDER, "the frame's byte count is not the spec's", _F),
+    ViolationSpec("bad-terminator", ERROR, SENDER, "the frame does not end with CR LF", _F),
+    ViolationSpec("letter-o", ERROR, SENDER, "the frame starts with the letter O, not the digit 0", _F),
+    ViolationSpec("lowercase-hex", NOTICE, SENDER,
+                  "hex digits or header in lower case (the vendor writes upper case)", _F),
+    ViolationSpec("missing-2", ERROR, SENDER, "the mandatory character 2 is missing", "Fields"),
+    ViolationSpec("field-range", ERROR, SENDER, "a field is out of its range", "Fields"),
+    ViolationSpec("unknown-command", ERROR, SENDER, "the header is no command or answer of the spec",
+                  "Frames"),
+    ViolationSpec("garbage", ERROR, SENDER, "bytes that form no frame", _F),
+    ViolationSpec("echo-mismatch", ERROR, DEVICE_SIDE, "an echo answer differs from its command", _B),
+    ViolationSpec("answer-mismatch", ERROR, DEVICE_SIDE, "an answer of another command or another N",
+                  _C),
+    ViolationSpec("unsolicited-answer", ERROR, DEVICE_SIDE, "an answer with no command waiting for it",
+                  _F),
+    ViolationSpec("no-answer", ERROR, DEVICE_SIDE, "a command (or an error) got no answer in time", _B),
+    ViolationSpec("overlapping-command", ERROR, HOST_SIDE, "a new command before the previous answer",
+                  _F),
+    ViolationSpec("command-during-motion", ERROR, HOST_SIDE, "a command sent while the axis moves", _B),
+    ViolationSpec("alarm-ignored", ERROR, HOST_SIDE,
+                  "the host went on after an alarm answer without a reset", _B),
+    ViolationSpec("comm-error-storm", ERROR, HOST_SIDE,
+                  "a command sent after too many communication errors in a row", _B),
+    ViolationSpec("error-accepted", ERROR, DEVICE_SIDE,
+                  "a normal answer to a command that breaks a stated rule (errors get an alarm answer)",
+                  _B),
+    ViolationSpec("latch-broken", ERROR, DEVICE_SIDE,
+                  "a normal answer while an alarm should still be latched", _B),
+    ViolationSpec("estop-cleared", ERROR, DEVICE_SIDE, "emergency stop cleared by an alarm reset",
+                  "Where the vendor text is silent"),
+    ViolationSpec("readback-mismatch", ERROR, DEVICE_SIDE,
+                  "a value read back differs from what the conversation established", _B),
+    ViolationSpec("reserved-alarm", NOTICE, SENDER,
+                  "alarm code 02, 03, 05 or 07 (no meaning in the vendor text)", "Alarms"),
+    ViolationSpec("unknown-alarm", NOTICE, SENDER, "an alarm code the vendor does not list", "Alarms"),
+)
+VIOLATION_TABLE: Final[dict[ViolationCode, ViolationSpec]] = {v.code: v for v in VIOLATION_SPECS}
+# code -> (severity, meaning), the shape the views use.
+VIOLATIONS: Final[dict[ViolationCode, tuple[Severity, str]]] = {
+    v.code: (v.severity, v.meaning) for v in VIOLATION_SPECS
+}
+NOTICES: Final[frozenset[ViolationCode]] = frozenset(v.code for v in VIOLATION_SPECS if v.severity == NOTICE)
+
+# Order in which strict parsing checks a frame (docs/protocol.md "Framing"); the first failure is raised.
+CHECK_ORDER: Final[dict[ViolationCode, int]] = {
     "letter-o": 0,
     "unknown-command": 0,
     "bad-length": 1,

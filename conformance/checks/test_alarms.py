@@ -29,7 +29,7 @@ def _latch(dut):
     pytest.param(h, id=h, marks=pytest.mark.xac1_motion) if h in MOTION_HEADERS else pytest.param(h, id=h)
     for h in LATCHED_KINDS])
 def test_alarm_latched(xac1_dut, xac1_kit, header):
-    """After an alarm, {id} is answered with the same alarm answer until a reset (PROTOCOL.md "Behaviour
+    """After an alarm, {id} is answered with the same alarm answer until a reset (docs/protocol.md "Behaviour
     the vendor text states": an alarm is latched)."""
     if header in MOTION_HEADERS:
         xac1_kit.prepare(header)  # a safe point for 0MP: a broken latch could only move safely
@@ -44,7 +44,7 @@ def test_alarm_latched(xac1_dut, xac1_kit, header):
 
 
 def test_reset_clears_alarm(xac1_dut):
-    """With an alarm latched, 0%C answers 0%C00 and the next command gets its normal answer (PROTOCOL.md
+    """With an alarm latched, 0%C answers 0%C00 and the next command gets its normal answer (docs/protocol.md
     "Behaviour the vendor text states": alarm reset)."""
     first = _latch(xac1_dut)
     r = xac1_dut.send(AlarmReset())
@@ -56,7 +56,7 @@ def test_reset_clears_alarm(xac1_dut):
 
 
 def test_malformed_alarm_code(xac1_dut):
-    """A malformed command is answered with an alarm answer (PROTOCOL.md "Behaviour the vendor text
+    """A malformed command is answered with an alarm answer (docs/protocol.md "Behaviour the vendor text
     states"); which code is information (silent item 1)."""
     p = _latch(xac1_dut)
     xac1_dut.info("alarm code for a malformed command", "silent item 1",
@@ -64,7 +64,7 @@ def test_malformed_alarm_code(xac1_dut):
 
 
 def test_estop_survives_reset(xac1_dut):
-    """0%C does not clear an emergency stop: the next command still gets alarm 0E (PROTOCOL.md "Behaviour
+    """0%C does not clear an emergency stop: the next command still gets alarm 0E (docs/protocol.md "Behaviour
     the vendor text states": the reset clears every alarm except emergency stop)."""
     sim = getattr(xac1_dut.client.port, "model", None)
     if not hasattr(sim, "set_estop"):

@@ -27,7 +27,7 @@ def _normal_sample(kit, header):
 
 @pytest.mark.parametrize("header", KINDS)
 def test_answer_length(xac1_dut, xac1_kit, header):
-    """The answer to {id} has the spec's byte count, CR LF included (PROTOCOL.md "Frames")."""
+    """The answer to {id} has the spec's byte count, CR LF included (docs/protocol.md "Frames")."""
     p = _normal_sample(xac1_kit, header)
     want = spec.SPECS[(header, spec.ANSWER)].length
     expect(len(p.raw) == want, f"{header} answer is {len(p.raw)} bytes, the spec says {want}", p)
@@ -35,14 +35,14 @@ def test_answer_length(xac1_dut, xac1_kit, header):
 
 @pytest.mark.parametrize("header", KINDS)
 def test_crlf(xac1_dut, xac1_kit, header):
-    """The answer to {id} ends with CR LF (PROTOCOL.md "Framing")."""
+    """The answer to {id} ends with CR LF (docs/protocol.md "Framing")."""
     p = _normal_sample(xac1_kit, header)
     expect(p.raw.endswith(spec.TERMINATOR), f"{header} answer does not end with CR LF", p)
 
 
 @pytest.mark.parametrize("header", KINDS)
 def test_leading_zero(xac1_dut, xac1_kit, header):
-    """The answer to {id} starts with the digit 0, not the letter O (PROTOCOL.md "Framing")."""
+    """The answer to {id} starts with the digit 0, not the letter O (docs/protocol.md "Framing")."""
     p = _normal_sample(xac1_kit, header)
     expect(p.raw[:1] == spec.LEAD, f"{header} answer starts with {p.raw[:1]!r}, not the digit 0", p)
 
@@ -50,7 +50,7 @@ def test_leading_zero(xac1_dut, xac1_kit, header):
 @pytest.mark.parametrize("header", [pytest.param(h, marks=pytest.mark.xac1_motion, id=h) if h in NEEDS_MOTION
                                     else pytest.param(h, id=h) for h in TWO_ANSWERS])
 def test_mandatory_2(xac1_dut, xac1_kit, header):
-    """The answer to {id} carries the mandatory character 2 where the layout has it (PROTOCOL.md "Fields")."""
+    """The answer to {id} carries the mandatory character 2 where the layout has it (docs/protocol.md "Fields")."""
     p = _normal_sample(xac1_kit, header)
     at = two_offset(header)
     expect(p.raw[at:at + 1] == spec.TWO.text.encode(),
@@ -58,7 +58,7 @@ def test_mandatory_2(xac1_dut, xac1_kit, header):
 
 
 def test_alarm_answer_framing(xac1_dut):
-    """The alarm answer to a malformed command is 7 bytes: 0%%, two hex digits, CR LF (PROTOCOL.md
+    """The alarm answer to a malformed command is 7 bytes: 0%%, two hex digits, CR LF (docs/protocol.md
     "Frames")."""
     from xac1_proto.frames import AlarmAnswer
 

@@ -1,4 +1,4 @@
-"""Where PROTOCOL.md is silent: record what the device does, never fail it.
+"""Where docs/protocol.md is silent: record what the device does, never fail it.
 
 Each check here sends its probes, describes the answers in the report's information section and
 passes whatever came back (silence included). Moves go only where the safety rules allow; a probe
@@ -28,7 +28,7 @@ pytestmark = pytest.mark.xac1_info
 
 @pytest.mark.xac1_motion
 def test_homing_answer(xac1_dut):
-    """The fields of the 0MP 0 answer and of 0RC after homing (PROTOCOL.md silent item 7)."""
+    """The fields of the 0MP 0 answer and of 0RC after homing (docs/protocol.md silent item 7)."""
     m = xac1_dut.send(MovePoint(n=0))
     r = xac1_dut.send(ReadCurrent())
     xac1_dut.info("0MP 0 answer", "silent item 7", describe_answer(m), m)
@@ -37,7 +37,7 @@ def test_homing_answer(xac1_dut):
 
 @pytest.mark.xac1_motion
 def test_rc_after_direct_move(xac1_dut, xac1_kit):
-    """0RC's N, V, A and O after a direct move (PROTOCOL.md silent item 9)."""
+    """0RC's N, V, A and O after a direct move (docs/protocol.md silent item 9)."""
     xac1_kit.require_homed()
     m = xac1_dut.send(MoveDirect(vel=0x3C, a=2, pos=xac1_kit.other_target()))
     r = xac1_dut.send(ReadCurrent())
@@ -46,7 +46,7 @@ def test_rc_after_direct_move(xac1_dut, xac1_kit):
 
 @pytest.mark.xac1_motion
 def test_point_move_answer_and_outputs(xac1_dut, xac1_kit):
-    """The 0MP N answer's V, A, O, Pos, and the OUT ports after the move (PROTOCOL.md silent item 8)."""
+    """The 0MP N answer's V, A, O, Pos, and the OUT ports after the move (docs/protocol.md silent item 8)."""
     xac1_kit.require_homed()
     n = xac1_kit.point(2)
     w = xac1_dut.send(WritePoint(n=n, v=9, a=3, o=2, pos=xac1_kit.other_target()))
@@ -60,13 +60,13 @@ def test_point_move_answer_and_outputs(xac1_dut, xac1_kit):
 
 @pytest.mark.xac1_motion
 def test_move_beyond_stroke(xac1_dut):
-    """The alarm code for a move to a position beyond the stroke (FFFFFF) (PROTOCOL.md silent item 5)."""
+    """The alarm code for a move to a position beyond the stroke (FFFFFF) (docs/protocol.md silent item 5)."""
     m = xac1_dut.send(MoveDirect(vel=0x3C, a=3, pos=spec.UNKNOWN_POSITION))
     xac1_dut.info("0MV to FFFFFF (beyond the stroke)", "silent item 5", describe_answer(m), m)
 
 
 def test_unwritten_points(xac1_dut, xac1_kit):
-    """What points never written read back as (PROTOCOL.md silent item 6), and 0MP to one (item 5)."""
+    """What points never written read back as (docs/protocol.md silent item 6), and 0MP to one (item 5)."""
     never = [n for n in POINTS if not xac1_kit.snapshot.points[n].restorable]
     untouched = [n for n in never if n not in xac1_kit.scratch[:6]]
     if not never:
@@ -87,7 +87,7 @@ def test_unwritten_points(xac1_dut, xac1_kit):
 
 
 def test_lowercase_hex(xac1_dut, xac1_kit):
-    """A command with lower-case hex digits (0RP with N = a) (PROTOCOL.md silent item 2)."""
+    """A command with lower-case hex digits (0RP with N = a) (docs/protocol.md silent item 2)."""
     p = xac1_dut.probe(ReadPoint(n=0xA).to_bytes().lower())
     xac1_dut.info("lower-case hex from the host (0rpa)", "silent item 2", describe_answer(p), p)
     q = xac1_dut.probe(b"0RP" + b"a" + spec.TERMINATOR)
@@ -95,13 +95,13 @@ def test_lowercase_hex(xac1_dut, xac1_kit):
 
 
 def test_store_into_point_0(xac1_dut):
-    """0WC 0 (point 0 is home, not a stored point) (PROTOCOL.md silent item 4)."""
+    """0WC 0 (point 0 is home, not a stored point) (docs/protocol.md silent item 4)."""
     p = xac1_dut.probe(StoreCurrent.unchecked(n=0).to_bytes())
     xac1_dut.info("0WC 0", "silent item 4", describe_answer(p), p)
 
 
 def test_extreme_positions(xac1_dut, xac1_kit):
-    """0WP with Pos 000000 and FFFFFF, read back (PROTOCOL.md silent item 5: 0WP stores any Pos); the
+    """0WP with Pos 000000 and FFFFFF, read back (docs/protocol.md silent item 5: 0WP stores any Pos); the
     point then gets a safe Pos again."""
     n = xac1_kit.point(0)
     seen = []

@@ -1,6 +1,6 @@
 """Malformed commands of every kind are answered with an alarm answer, not silence.
 
-PROTOCOL.md "Framing" (wrong length, terminator, letter O, the 2, unknown header, field ranges) and
+docs/protocol.md "Framing" (wrong length, terminator, letter O, the 2, unknown header, field ranges) and
 "Fields"; each probe ends with LF (silent item 1). Which alarm code comes back is information.
 """
 
@@ -16,7 +16,7 @@ CASES = [pytest.param(m, id=m.name, marks=[pytest.mark.xac1_motion] if m.moves e
 
 @pytest.mark.parametrize("bad", CASES)
 def test_malformed_answered_with_alarm(xac1_dut, xac1_kit, bad):
-    """A malformed command ({id}) gets an alarm answer, not silence and not a normal answer (PROTOCOL.md
+    """A malformed command ({id}) gets an alarm answer, not silence and not a normal answer (docs/protocol.md
     "Framing"; "Behaviour the vendor text states")."""
     if bad.moves:
         xac1_kit.require_homed()

@@ -19,7 +19,7 @@ def _position(dut, *evidence):
 
 
 def test_point_move_reaches_target(xac1_dut, xac1_kit):
-    """After 0MP N has answered, 0RC reads point N's Pos (PROTOCOL.md "Frames", 0MP; "Behaviour the vendor
+    """After 0MP N has answered, 0RC reads point N's Pos (docs/protocol.md "Frames", 0MP; "Behaviour the vendor
     text states": the answer comes after the move)."""
     xac1_kit.require_homed()
     n, target = xac1_kit.point(1), xac1_kit.other_target()
@@ -33,7 +33,7 @@ def test_point_move_reaches_target(xac1_dut, xac1_kit):
 
 
 def test_direct_move_reaches_target(xac1_dut, xac1_kit):
-    """After 0MV has answered, 0RC reads the move's Pos (PROTOCOL.md "Frames", 0MV)."""
+    """After 0MV has answered, 0RC reads the move's Pos (docs/protocol.md "Frames", 0MV)."""
     xac1_kit.require_homed()
     target = xac1_kit.other_target()
     m = xac1_dut.send(MoveDirect(vel=0x3C, a=2, pos=target))
@@ -44,7 +44,7 @@ def test_direct_move_reaches_target(xac1_dut, xac1_kit):
 
 def test_homing(xac1_dut, xac1_kit):
     """0MP 0 homes: it answers as 0MP with N 0, and 0RC no longer reads the unknown position FFFFFF
-    (PROTOCOL.md "Frames", 0MP; "Behaviour the vendor text states")."""
+    (docs/protocol.md "Frames", 0MP; "Behaviour the vendor text states")."""
     m = xac1_dut.send(MovePoint(n=0))
     expect(m.answered and m.frame.header == "0MP", f"0MP0 got {describe_answer(m)}", m)
     expect(m.frame.n == 0, f"0MP0 answered N={m.frame.n:X}", m)

@@ -10,7 +10,7 @@ from xac1_proto.frames import ReadOutputs, ReadOutputsAnswer, WriteOutputs
 
 @pytest.mark.parametrize("o", [3, 1, 2, 0])
 def test_outputs_read_back(xac1_dut, o):
-    """0RS after 0WS with O={id} answers O={id} (PROTOCOL.md "Frames", 0WS and 0RS)."""
+    """0RS after 0WS with O={id} answers O={id} (docs/protocol.md "Frames", 0WS and 0RS)."""
     w = xac1_dut.send(WriteOutputs(o=o))
     expect(w.answered, f"0WS{o}2 got {describe_answer(w)}", w)
     r = xac1_dut.send(ReadOutputs())

@@ -21,7 +21,7 @@ EXTREMES = [(1, 3, 0), (9, 1, 3), (2, 3, 1), (8, 1, 2)]
 
 
 def test_read_point_carries_n(xac1_dut):
-    """The 0RP answer carries the command's N, for every point 1-F (PROTOCOL.md "Frames", 0RP)."""
+    """The 0RP answer carries the command's N, for every point 1-F (docs/protocol.md "Frames", 0RP)."""
     for n in POINTS:
         p = xac1_dut.send(ReadPoint(n=n))
         expect(isinstance(p.frame, ReadPointAnswer), f"0RP{n:X} got {describe_answer(p)}", p)
@@ -31,7 +31,7 @@ def test_read_point_carries_n(xac1_dut):
 @pytest.mark.parametrize("k,values", list(enumerate(EXTREMES)),
                          ids=[f"V{v}A{a}O{o}" for v, a, o in EXTREMES])
 def test_read_back_after_write(xac1_dut, xac1_kit, k, values):
-    """0RP after 0WP ({id}) answers exactly the values written (PROTOCOL.md "Frames", 0WP and 0RP)."""
+    """0RP after 0WP ({id}) answers exactly the values written (docs/protocol.md "Frames", 0WP and 0RP)."""
     v, a, o = values
     n, pos = xac1_kit.point(k % 2), xac1_kit.safe_pos(k)  # two points: a device mixing up N shows
     w = xac1_dut.send(WritePoint(n=n, v=v, a=a, o=o, pos=pos))
@@ -46,7 +46,7 @@ def test_read_back_after_write(xac1_dut, xac1_kit, k, values):
 @pytest.mark.xac1_motion
 def test_store_current(xac1_dut, xac1_kit):
     """0WC N stores the current position into N: its answer carries N and that Pos, and 0RP N then reads
-    the same data (PROTOCOL.md "Frames", 0WC)."""
+    the same data (docs/protocol.md "Frames", 0WC)."""
     xac1_kit.require_homed()
     n, target = xac1_kit.point(2), xac1_kit.other_target()
     m = xac1_dut.send(MoveDirect(vel=0x3C, a=3, pos=target))
@@ -62,7 +62,7 @@ def test_store_current(xac1_dut, xac1_kit):
 
 @pytest.mark.xac1_motion
 def test_point_move_carries_n(xac1_dut, xac1_kit):
-    """The 0MP answer carries the command's N (PROTOCOL.md "Frames", 0MP)."""
+    """The 0MP answer carries the command's N (docs/protocol.md "Frames", 0MP)."""
     xac1_kit.require_homed()
     xac1_kit.write_safe_point(3)
     n = xac1_kit.point(3)

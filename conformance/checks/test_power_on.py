@@ -12,7 +12,7 @@ pytestmark = pytest.mark.xac1_fresh
 
 
 def test_rc_before_homing(xac1_dut):
-    """0RC before homing and before any move answers N, V, A = 0 and Pos = FFFFFF (PROTOCOL.md "Behaviour
+    """0RC before homing and before any move answers N, V, A = 0 and Pos = FFFFFF (docs/protocol.md "Behaviour
     the vendor text states")."""
     p = xac1_dut.current_position()
     expect(isinstance(p.frame, ReadCurrentAnswer), f"0RC got {describe_answer(p)}", p)
@@ -25,7 +25,7 @@ def test_rc_before_homing(xac1_dut):
 
 @pytest.mark.xac1_info
 def test_store_before_homing(xac1_dut, xac1_kit):
-    """0WC before homing, when the current position is unknown (PROTOCOL.md silent item 4)."""
+    """0WC before homing, when the current position is unknown (docs/protocol.md silent item 4)."""
     p = xac1_dut.send(StoreCurrent(n=xac1_kit.point(0)))
     xac1_dut.info("0WC before homing", "silent item 4", describe_answer(p), p)
 
@@ -33,7 +33,7 @@ def test_store_before_homing(xac1_dut, xac1_kit):
 @pytest.mark.xac1_motion
 def test_first_move_homes_first(xac1_dut, xac1_kit):
     """A first 0MV on a never-homed axis homes, then moves, then answers: 0RC then reads the move's Pos
-    (PROTOCOL.md "Behaviour the vendor text states")."""
+    (docs/protocol.md "Behaviour the vendor text states")."""
     if not xac1_dut.settings.may_home:
         pytest.skip("homing goes to the origin, outside the safe range")
     target = xac1_kit.other_target()

@@ -60,7 +60,7 @@ def _initial_model(dut) -> Model:
 
 def test_random_sequences(xac1_dut, xac1_kit, xac1_settings):
     """Random sequences of commands get the answers a reference model of the stated rules predicts: echoes,
-    read-back, latched alarms, reset, positions after moves (PROTOCOL.md "Frames"; "Behaviour the vendor
+    read-back, latched alarms, reset, positions after moves (docs/protocol.md "Frames"; "Behaviour the vendor
     text states")."""
     dut, s = xac1_dut, xac1_settings
     xac1_kit.point(0)  # at least one point to write (NotEnoughPoints: skipped, saying what to pass)

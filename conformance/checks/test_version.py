@@ -7,7 +7,7 @@ from xac1_proto.frames import ReadVersion, ReadVersionAnswer
 
 
 def test_version_format(xac1_dut):
-    """0RV answers 0RV and three decimal digits (PROTOCOL.md "Frames", 0RV; "Fields", ver)."""
+    """0RV answers 0RV and three decimal digits (docs/protocol.md "Frames", 0RV; "Fields", ver)."""
     p = xac1_dut.send(ReadVersion())
     bad = [v for v in p.violations if v.code == "field-range"]
     expect(isinstance(p.frame, ReadVersionAnswer) and not bad,
@@ -17,7 +17,7 @@ def test_version_format(xac1_dut):
 
 
 def test_version_stable(xac1_dut):
-    """0RV answers the same version every time (PROTOCOL.md "Frames", 0RV: the firmware version)."""
+    """0RV answers the same version every time (docs/protocol.md "Frames", 0RV: the firmware version)."""
     a, b = xac1_dut.send(ReadVersion()), xac1_dut.send(ReadVersion())
     expect(isinstance(a.frame, ReadVersionAnswer) and isinstance(b.frame, ReadVersionAnswer)
            and a.frame.version == b.frame.version, "two 0RV answers differ", a, b)

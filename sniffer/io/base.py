@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Final
 
-from ..chunk import DEVICE, HOST, Direction
+from xac1_proto.chunk import DEVICE, HOST, Direction
 
 MAX_KEPT: Final = 50  # problem messages kept; the rest are only counted
 MAX_LINE: Final = 1 << 16  # longest text line read at once (a longer one is read in pieces)

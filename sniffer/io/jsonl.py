@@ -14,9 +14,10 @@ import json
 from collections.abc import Iterator
 from typing import Final
 
-from ..chunk import Chunk
+from xac1_proto.chunk import Chunk
+from xac1_proto.recording import is_recording, read_recording
+
 from .base import Source
-from .recording import is_recording, read_recording
 
 FORMAT: Final = "jsonl"
 DESCRIPTION: Final = "our JSON lines: a raw recording or decoded output"

@@ -22,7 +22,8 @@ import struct
 from collections.abc import Iterator
 from typing import IO, Final
 
-from ..chunk import HOST, Chunk, Direction
+from xac1_proto.chunk import HOST, Chunk, Direction
+
 from .base import FormatError, Sides, Source
 
 FORMAT: Final = "pcap"

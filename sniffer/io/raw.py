@@ -16,7 +16,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Final
 
-from ..chunk import Chunk
+from xac1_proto.chunk import Chunk
+
 from .base import Sides, Source
 
 FORMAT: Final = "raw"

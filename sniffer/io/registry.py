@@ -19,7 +19,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, Final
 
-from ..chunk import Chunk
+from xac1_proto.chunk import Chunk
+
 from . import interceptty, jpnevulator, jsonl, pcap, raw, saleae, sigrok, socat, spy
 from .base import FormatError, Report, Sides, Source, head_lines
 

@@ -25,8 +25,8 @@ from itertools import islice
 from typing import Final
 
 from xac1_proto import spec
+from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 
-from ..chunk import DEVICE, HOST, Chunk, Direction
 from .base import FormatError, Source
 
 FORMAT: Final = "sigrok"

@@ -24,7 +24,8 @@ import re
 from collections.abc import Iterator
 from typing import Final
 
-from ..chunk import Chunk
+from xac1_proto.chunk import Chunk
+
 from .base import Report, Sides, Source, wallclock
 
 FORMAT: Final = "socat"

@@ -17,7 +17,8 @@ import re
 from collections.abc import Iterator
 from typing import Final
 
-from ..chunk import Chunk
+from xac1_proto.chunk import Chunk
+
 from .base import Sides, Source
 
 FORMAT: Final = "spy"

@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.deviation == ["list"]:
         for name, (rule, section) in DEVIATIONS.items():
-            print(f"{name:28} {rule} [PROTOCOL.md: {section}]")
+            print(f"{name:28} {rule} [docs/protocol.md: {section}]")
         return 0
     if args.link and not args.pty:
         return _fail("--link goes with --pty")
@@ -116,8 +116,8 @@ def run(args: argparse.Namespace) -> int:
 
     writer = None
     if args.log:
-        from sniffer.chunk import Chunk
-        from sniffer.io.recording import RecordingWriter
+        from ..chunk import Chunk
+        from ..recording import RecordingWriter
         try:
             writer = RecordingWriter(args.log, source=f"xac1 sim ({'pty' if args.pty else 'tcp'})")
         except OSError as exc:

@@ -1,6 +1,6 @@
-"""The simulator's settings in one place: every PROTOCOL.md silent-point choice, line faults, deviations.
+"""The simulator's settings in one place: every docs/protocol.md silent-point choice, line faults, deviations.
 
-``SimConfig`` holds the defaults PROTOCOL.md "Where the vendor text is silent" fixes; each field names
+``SimConfig`` holds the defaults docs/protocol.md "Where the vendor text is silent" fixes; each field names
 the silent item it covers, so a test can run the simulator with other choices. ``LineFaults`` spoils
 answer bytes on the way out (seedable). ``DEVIATIONS`` lists the named ways to break one *stated* rule
 on purpose (the conformance suite proves itself against them); they are not faults a device may have.
@@ -19,7 +19,7 @@ from typing import Final
 from .. import spec
 from ..motion import DEFAULT_SPEEDS, SpeedTable
 
-# name -> (rule broken, PROTOCOL.md section). Each deviation breaks exactly one stated rule.
+# name -> (rule broken, docs/protocol.md section). Each deviation breaks exactly one stated rule.
 DEVIATIONS: Final[dict[str, tuple[str, str]]] = {
     "no-2": ("answers that carry the mandatory `2` are sent without it (one byte short)",
              "Fields; Frames"),
@@ -76,7 +76,7 @@ class LineFaults:
 
 @dataclass(frozen=True)
 class SimConfig:
-    """Everything the simulator may be told; defaults are PROTOCOL.md's choices."""
+    """Everything the simulator may be told; defaults are docs/protocol.md's choices."""
 
     version: str = "100"  # 0RV's answer, three digits
     time_scale: float = 1.0  # scales motion and turnaround; 0 = instant

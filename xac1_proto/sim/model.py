@@ -1,19 +1,19 @@
 """The XA-C1 device model: bytes and a timestamp in, answers with the time they are due out (sans-IO).
 
 How it works: ``receive(data, t)`` appends bytes to a line buffer; each LF ends a command line
-(PROTOCOL.md silent item 1: bytes with no LF yet wait, they are never answered early). A line is decoded
+(docs/protocol.md silent item 1: bytes with no LF yet wait, they are never answered early). A line is decoded
 strictly with ``xac1_proto.parse``; a malformed line latches alarm 01 and is answered ``0%%01``. A good
 command is dispatched on its header through ``_HANDLERS`` to a method that changes the device state and
 returns the answer frame (built with the frame classes, sent with ``to_bytes()``) and how long the axis
 moves first. While an alarm is latched every command but ``0%C`` is answered with the alarm; ``0%C``
-clears all but emergency stop (PROTOCOL.md "Behaviour the vendor text states"). Answers go into an
+clears all but emergency stop (docs/protocol.md "Behaviour the vendor text states"). Answers go into an
 ``Outbox`` due ``turnaround + motion`` later (both scaled by ``time_scale``; 0 = instant); bytes that
 arrive before a move's answer is due are discarded (silent item 10). Moves take the time
 ``xac1_proto.motion`` gives (silent item 15); a move to a point or direct position homes first when the
 axis has not been homed. Nothing here reads a clock, a port or a socket: shells feed the bytes, ask
 ``outbox.next_due`` when to wake, and ``outbox.pop(t)`` what to write.
 
-Where PROTOCOL.md is silent, ``SimConfig`` fields name the choice (defaults: PROTOCOL.md's). Beyond the
+Where docs/protocol.md is silent, ``SimConfig`` fields name the choice (defaults: docs/protocol.md's). Beyond the
 silent items: 0WC keeps the point's V, A, O (unwritten: the silent item 6 values) and stores the
 current position; a homing move of an axis whose position is unknown travels ``homing_distance``.
 
@@ -353,7 +353,7 @@ class DeviceModel:
                 return motion.position_at(seg.start, seg.target, seg.speed, seg.a, (t - seg.t0) / scale)
         return self.position if self.homed else None
 
-    # ---- fault injection (PROTOCOL.md "Alarms") ----
+    # ---- fault injection (docs/protocol.md "Alarms") ----
 
     def raise_alarm(self, code: int, t: float | None = None) -> list[Output]:
         """Latch alarm ``code`` now (0E: emergency stop on); the device sends nothing by itself."""
@@ -450,7 +450,7 @@ def _codes(codes: frozenset[int]) -> str:
 
 Handler = Callable[[DeviceModel, Any, float], tuple[fr.Frame, float]]
 
-# Dispatch by header (PROTOCOL.md "Frames").
+# Dispatch by header (docs/protocol.md "Frames").
 _HANDLERS: Final[dict[str, Handler]] = {
     fr.ReadPoint.HEADER: DeviceModel._read_point,
     fr.WritePoint.HEADER: DeviceModel._write_point,

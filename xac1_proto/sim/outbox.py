@@ -1,7 +1,7 @@
 """The simulator's send queue: answer bytes with the time each is due, line faults applied (sans-IO).
 
 The device model puts each answer in the outbox with the time its first byte is due; with wire timing
-every later byte is due one byte time (1.0417 ms, PROTOCOL.md "Line") after the one before, and an
+every later byte is due one byte time (1.0417 ms, docs/protocol.md "Line") after the one before, and an
 answer never starts before the previous one has gone out. Line faults are applied as an answer enters
 the queue, from a ``random.Random`` seeded by ``LineFaults.seed`` (so a seed replays the same spoiling
 for the same conversation). A shell asks ``next_due`` for when to wake up and ``pop(t)`` for the bytes

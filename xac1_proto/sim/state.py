@@ -1,4 +1,4 @@
-"""The position table on disk (PROTOCOL.md silent item 16): the simulator's non-volatile memory.
+"""The position table on disk (docs/protocol.md silent item 16): the simulator's non-volatile memory.
 
 File format (JSON): ``{"format": "xac1sim-state", "version": 1, "points": {"1": {"v": 9, "a": 3,
 "o": 0, "pos": 74565}, ...}}`` (only written points). ``save_state`` writes atomically: a temporary file

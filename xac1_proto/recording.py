@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from ..chunk import Chunk
+from .chunk import Chunk
 
 VERSION = 1
 FSYNC_EVERY_S = 1.0
