@@ -311,7 +311,8 @@ def markdown(rep: Report) -> str:
     o += [f"| {k} | {_md_cell(v)} |" for k, v in rep.options]
     if rep.abort:
         o += ["", f"**The run stopped early:** {_md_cell(rep.abort)}"]
-    o += ["", "## Verdicts", "", "| check | rule | docs/protocol.md | verdict | evidence (sent -> received) |",
+    o += ["", "## Verdicts", "",
+          "| check | rule | docs/protocol.md | verdict | evidence (sent -> received) |",
           "|---|---|---|---|---|"]
     for r in rep.checks:
         ev = "<br>".join(_md_code(p.show()) for p in r.probes[:2]) or _md_cell(r.message or "-")
@@ -322,7 +323,8 @@ def markdown(rep: Report) -> str:
     if rep.failed:
         o += ["", "## Failures in detail", ""]
         for r in rep.failed:
-            where = f" (docs/protocol.md {r.section})" if r.section and "docs/protocol.md" not in r.rule else ""
+            cited = r.section and "docs/protocol.md" not in r.rule
+            where = f" (docs/protocol.md {r.section})" if cited else ""
             o += [f"### {r.verdict}: {_md_cell(r.check)}", "", f"Rule: {r.rule}{where}", "",
                   f"What happened: {r.message}", ""]
             o += ["Exchanges:", ""] + [f"- {_md_code(p.show())}" for p in r.probes[:EVIDENCE_LIMIT]]

@@ -127,8 +127,8 @@ def test_deviation_fails_the_right_check(deviation_runs, deviation):
 
 
 def test_other_silent_choices_still_pass_over_tcp(tmp_path):
-    """Against `socket://` with other choices on every silent point (docs/protocol.md "Where the vendor text is
-    silent"), the suite still passes; afterwards the points and OUT ports are as they were."""
+    """Against `socket://` with other choices on every silent point (docs/protocol.md "Where the vendor
+    text is silent"), the suite still passes; afterwards the points and OUT ports are as they were."""
     with serve_tcp(OTHER_CHOICES) as sim:
         before = read_table(sim.url)
         r = conformance(["--port", sim.url, "--allow-motion", "--safe-range", "0:0x1000", "--fresh", *FAST],

@@ -1,4 +1,6 @@
-"""How long a host must wait for a move's answer (sans-IO; docs/protocol.md "Behaviour the vendor text states").
+"""How long a host must wait for a move's answer (sans-IO).
+
+docs/protocol.md "Behaviour the vendor text states".
 
 0MP and 0MV answer only when the move has ended, homing first when the axis is not homed, so their
 timeout is the move's duration plus a margin, never the turnaround timeout. ``MoveBudget`` keeps what

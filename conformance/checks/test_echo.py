@@ -37,7 +37,8 @@ def test_switch_mode_echo(xac1_dut):
 
 @pytest.mark.xac1_motion
 def test_direct_move_echo(xac1_dut, xac1_kit):
-    """0MV answers with the command, byte for byte, once the move has ended (docs/protocol.md "Frames", 0MV)."""
+    """0MV answers with the command, byte for byte, once the move has ended
+    (docs/protocol.md "Frames", 0MV)."""
     xac1_kit.require_homed()
     p = xac1_dut.send(xac1_kit.command("0MV"))
     _echoed(p, "0MV")

@@ -50,7 +50,8 @@ def test_leading_zero(xac1_dut, xac1_kit, header):
 @pytest.mark.parametrize("header", [pytest.param(h, marks=pytest.mark.xac1_motion, id=h) if h in NEEDS_MOTION
                                     else pytest.param(h, id=h) for h in TWO_ANSWERS])
 def test_mandatory_2(xac1_dut, xac1_kit, header):
-    """The answer to {id} carries the mandatory character 2 where the layout has it (docs/protocol.md "Fields")."""
+    """The answer to {id} carries the mandatory character 2 where the layout has it
+    (docs/protocol.md "Fields")."""
     p = _normal_sample(xac1_kit, header)
     at = two_offset(header)
     expect(p.raw[at:at + 1] == spec.TWO.text.encode(),

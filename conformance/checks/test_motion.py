@@ -19,8 +19,8 @@ def _position(dut, *evidence):
 
 
 def test_point_move_reaches_target(xac1_dut, xac1_kit):
-    """After 0MP N has answered, 0RC reads point N's Pos (docs/protocol.md "Frames", 0MP; "Behaviour the vendor
-    text states": the answer comes after the move)."""
+    """After 0MP N has answered, 0RC reads point N's Pos (docs/protocol.md "Frames", 0MP; "Behaviour the
+    vendor text states": the answer comes after the move)."""
     xac1_kit.require_homed()
     n, target = xac1_kit.point(1), xac1_kit.other_target()
     w = xac1_dut.send(WritePoint(n=n, v=9, a=3, o=xac1_kit.snapshot.outputs, pos=target))

@@ -13,8 +13,8 @@ arrive before a move's answer is due are discarded (silent item 10). Moves take 
 axis has not been homed. Nothing here reads a clock, a port or a socket: shells feed the bytes, ask
 ``outbox.next_due`` when to wake, and ``outbox.pop(t)`` what to write.
 
-Where docs/protocol.md is silent, ``SimConfig`` fields name the choice (defaults: docs/protocol.md's). Beyond the
-silent items: 0WC keeps the point's V, A, O (unwritten: the silent item 6 values) and stores the
+Where docs/protocol.md is silent, ``SimConfig`` fields name the choice (defaults: docs/protocol.md's).
+Beyond the silent items: 0WC keeps the point's V, A, O (unwritten: the silent item 6 values) and stores the
 current position; a homing move of an axis whose position is unknown travels ``homing_distance``.
 
 Fault injection (the spec-allowed faults a real device may show): ``raise_alarm``, ``set_estop``,
