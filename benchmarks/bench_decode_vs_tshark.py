@@ -1,0 +1,117 @@
+"""Benchmark: ``xac1 decode`` against tshark with a Lua dissector, on the same seeded files, in one run.
+
+Generates (``traffic.py``) a clean and an anomalous conversation of ``--exchanges`` exchanges as an
+RTAC-serial pcapng and a socat ``-x`` log, then times, each as a child process measured with
+``os.wait4`` (wall time and peak RSS of that child alone):
+- ``xac1 decode FILE --format summary``, ``--format jsonl`` and the text view (to /dev/null);
+- ``tshark -r FILE.pcapng -X lua_script:<dissector> -d rtacser.data,<proto> -T fields -e <field>``
+  with ``minimal_dissector.lua`` (the issue's peer), or ``--dissector PATH PROTO FIELD``;
+and the library path in this process (``sniffer.analyzer.Analyzer`` fed the chunks: the path the live
+sniffer and decode share). Prints frames/s, MB/s, peak RSS and each ratio to tshark.
+
+Run: ``python benchmarks/bench_decode_vs_tshark.py [--exchanges 500000] [--keep DIR]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import traffic  # noqa: E402
+
+
+def run(cmd: list[str]) -> tuple[float, float]:
+    """(wall seconds, peak RSS MiB) of one child process; its output is discarded."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode not in (0, 1):  # 1: violations found (the anomalous files)
+        raise SystemExit(f"{' '.join(cmd)} exited {proc.returncode}")
+    return wall, usage.ru_maxrss / 1024
+
+
+def library_path(path: Path, fmt: str) -> float:
+    """Seconds for the reader + analyzer path in this process, records made and dropped."""
+    from sniffer.analyzer import Analyzer
+    from sniffer.io.registry import Capture
+
+    t0 = time.perf_counter()
+    analyzer = Analyzer()
+    with Capture([str(path)], "pcap" if fmt == "pcapng" else fmt) as capture:
+        for chunk in capture:
+            analyzer.feed(chunk)
+    analyzer.close()
+    return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--exchanges", type=int, default=500_000)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--keep", type=Path, help="write the generated files here and keep them")
+    ap.add_argument("--dissector", nargs=3, metavar=("LUA", "PROTO", "FIELD"),
+                    default=[str(HERE / "minimal_dissector.lua"), "xac1min", "xac1min.header"])
+    args = ap.parse_args(argv)
+    xac1 = shutil.which("xac1") or str(Path(sys.executable).with_name("xac1"))
+    tshark = shutil.which("tshark")
+    workdir = args.keep or Path(tempfile.mkdtemp(prefix="xac1-bench-"))
+    workdir.mkdir(parents=True, exist_ok=True)
+    frames_per = {}
+    rows = []
+    for anomalous in (False, True):
+        kind = "anomalous" if anomalous else "clean"
+        for fmt, writer, suffix in (("pcapng", traffic.write_pcapng, ".pcapng"),
+                                    ("socat", traffic.write_socat, ".log")):
+            path = workdir / f"{kind}-{args.exchanges}{suffix}"
+            if not path.exists():
+                writer(traffic.conversation(args.exchanges, args.seed, anomalous), path)
+            n = sum(1 for _ in traffic.conversation(args.exchanges, args.seed, anomalous))
+            frames_per[path] = n
+            mb = path.stat().st_size / 1e6
+            peer = None
+            if fmt == "pcapng" and tshark:
+                lua, proto, field = args.dissector
+                wall, rss = run([tshark, "-r", str(path), "-X", f"lua_script:{lua}", "-d",
+                                 f"rtacser.data,{proto}", "-T", "fields", "-e", field])
+                peer = wall
+                rows.append((kind, fmt, "tshark + Lua", n / wall, mb / wall, rss, 1.0))
+            for label, extra in (("decode summary", ["--format", "summary"]),
+                                 ("decode jsonl", ["--format", "jsonl"]),
+                                 ("decode text", [])):
+                wall, rss = run([xac1, "decode", str(path), "--no-progress", *extra]
+                                if _has_no_progress(xac1) else [xac1, "decode", str(path), *extra])
+                ratio = None if peer is None else peer / wall
+                rows.append((kind, fmt, label, n / wall, mb / wall, rss, ratio))
+            wall = library_path(path, fmt)
+            rows.append((kind, fmt, "library path", n / wall, mb / wall, float("nan"),
+                         None if peer is None else peer / wall))
+    print(f"{args.exchanges} exchanges a file, seed {args.seed}, files in {workdir}")
+    print(f"{'traffic':10} {'file':7} {'what':16} {'frames/s':>11} {'MB/s':>7} {'peak MiB':>9} "
+          f"{'x tshark':>9}")
+    for kind, fmt, label, fps, mbs, rss, ratio in rows:
+        shown = "-" if ratio is None else f"{ratio:.2f}"
+        rss_s = "-" if rss != rss else f"{rss:.0f}"
+        print(f"{kind:10} {fmt:7} {label:16} {fps:11,.0f} {mbs:7.2f} {rss_s:>9} {shown:>9}")
+    if args.keep is None:
+        shutil.rmtree(workdir, ignore_errors=True)
+    return 0
+
+
+def _has_no_progress(xac1: str) -> bool:
+    out = subprocess.run([xac1, "decode", "--help"], capture_output=True, text=True).stdout
+    return "--no-progress" in out
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
