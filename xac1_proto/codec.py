@@ -14,6 +14,7 @@ import construct as cs
 
 from . import grammar, spec
 from .errors import FrameError, Violation
+from .fastcodec import decode_clean
 from .frames import FRAME_CLASSES, Frame, range_text
 
 _NAMES = {0x0D: "CR", 0x0A: "LF"}
@@ -165,6 +166,9 @@ def diagnose(data: bytes, role: str) -> tuple[Frame | None, list[Violation]]:
     """Decode ``data`` as far as possible and list every deviation; never raises on bad data."""
     role = _check_role(role)
     data = bytes(data)
+    clean = decode_clean(data, role)  # most traffic: a well-formed frame, no walk needed
+    if clean is not None:
+        return clean, []
     out: list[Violation] = []
     fs = _find_spec(data, role, out)
     if fs is None:
