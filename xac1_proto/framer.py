@@ -15,6 +15,7 @@ byte or in any chunks gives the same events. Every byte fed comes out in exactly
 from __future__ import annotations
 
 import bisect
+import re
 from dataclasses import dataclass
 from typing import Final
 
@@ -31,6 +32,7 @@ _ZERO: Final = spec.LEAD[0]
 _O: Final = spec.LETTER_O[0]
 _LF: Final = spec.LF
 _UNDECIDED: Final = -2
+_START_BYTE: Final = re.compile(b"[" + re.escape(spec.LEAD + spec.LETTER_O) + b"]")
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,7 +141,8 @@ class Framer:
         buf = self._buf
         lf = buf.find(_LF, 0, self.max_frame)
         limit = lf if lf >= 0 else min(len(buf), self.max_frame)
-        for p in range(1, limit):
+        # only a 0 or an O can start a header (the list releases the buffer before buf is resized)
+        for p in [m.start() for m in _START_BYTE.finditer(buf, 1, limit)]:
             found = _strong_start(buf, p)
             if found == 1:
                 return self._emit(p, "truncated")
