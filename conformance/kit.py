@@ -171,14 +171,14 @@ def _swap(raw: bytes, at: int, new: bytes) -> bytes:
 
 
 def _two_at(frame: Frame) -> int:
-    at = frame.spec().literal_offset(spec.TWO)
+    at = frame.frame_spec().literal_offset(spec.TWO)
     if at is None:
         raise ValueError(f"{frame.header} has no 2")
     return at
 
 
 def _field_at(frame_cls: type[Frame], name: str) -> int:
-    return frame_cls.spec().offsets()[name]
+    return frame_cls.frame_spec().offsets()[name]
 
 
 def _wp(kit: Kit, **over: int) -> Frame:

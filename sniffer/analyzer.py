@@ -372,7 +372,7 @@ class Analyzer:
         cmd = w.frame
         if cmd is None or frame is None:
             return
-        if frame.spec().echo:
+        if frame.frame_spec().echo:
             if frame.fields() != cmd.fields():
                 diff = ", ".join(f"{spec.FIELDS[k].label} {v} vs {cmd.fields().get(k)}"
                                  for k, v in frame.fields().items() if cmd.fields().get(k) != v)

@@ -20,6 +20,7 @@ from typing import IO, Protocol
 
 import serial
 
+import xac1_proto.urlhandler  # noqa: F401  (registers xac1sim:// for the controller port)
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 
 from .live import TICK_S, Clock, Session

@@ -21,6 +21,7 @@ from typing import TypeVar, cast
 import serial
 
 from . import motion, spec
+from . import urlhandler as _urlhandler  # noqa: F401  (registers xac1sim:// for serial_for_url)
 from .codec import diagnose, show_bytes
 from .errors import CommunicationHalted, ResponseTimeout
 from .exchange import Exchange, StormGuard, answer_or_raise, judge_answer

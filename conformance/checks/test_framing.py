@@ -65,7 +65,7 @@ def test_alarm_answer_framing(xac1_dut):
 
     p = xac1_dut.probe(b"0XY" + spec.TERMINATOR)
     expect(not p.timed_out, "no answer (silence) to a malformed command", p)
-    want = AlarmAnswer.spec().length
+    want = AlarmAnswer.frame_spec().length
     expect(p.raw.startswith(spec.ALARM_HEADER.encode()), f"expected an alarm answer 0%%Ec, got "
                                                            f"{describe_answer(p)}", p)
     expect(len(p.raw) == want and p.raw.endswith(spec.TERMINATOR),

@@ -29,7 +29,7 @@ def spoil(frame: Frame, raw: bytes, deviations: frozenset[str]) -> bytes:
     """``raw`` (the frame's correct bytes) with the shape deviations applied."""
     if not deviations:
         return raw
-    fs = frame.spec()
+    fs = frame.frame_spec()
     data = bytearray(raw)
     if "swapped-fields" in deviations and frame.header in _SWAPPED and "v" in fs.offsets():
         v, a = fs.offsets()["v"], fs.offsets()["a"]
