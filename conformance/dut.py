@@ -206,8 +206,9 @@ class DeviceUnderTest:
         if check.frame is None or check.alarm is not None:
             raise DeviceAbort(f"after an alarm reset the device still gives {describe_answer(check)} "
                               f"({check.show()}): the run cannot go on")
-        # A non-alarm answer ends the run of communication errors (docs/protocol.md host duty), even when it
-        # breaks a framing rule: that is for the checks to judge, not a reason to stop talking.
+        # A non-alarm answer ends the run of communication errors (docs/protocol.md "Behaviour the vendor
+        # text states", host duty), even when it breaks a framing rule: that is for the checks to judge,
+        # not a reason to stop talking.
         self.client.rearm()
 
     def _silence(self, heard: bool) -> str:

@@ -111,7 +111,8 @@ class Client:
 
     @property
     def comm_errors_in_row(self) -> int:
-        """``0%%01`` answers since the last normal answer (docs/protocol.md host duty)."""
+        """``0%%01`` answers since the last normal answer (docs/protocol.md "Behaviour the vendor text
+        states", host duty)."""
         return self._guard.in_row
 
     @property
