@@ -245,7 +245,7 @@ class ViolationSpec:
 
     def side(self, sender: Side) -> Side:
         """Whose fault it is when found in bytes sent by ``sender``."""
-        return sender if self.duty == SENDER else self.duty  # type: ignore[return-value]
+        return sender if self.duty == SENDER else self.duty
 
 
 _F, _B, _C = "Framing", "Behaviour the vendor text states", "Violation codes"
