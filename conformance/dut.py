@@ -16,7 +16,6 @@ else ``StoppedAnswering``) and every later probe fails at once without being sen
 from __future__ import annotations
 
 import statistics
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -269,10 +268,6 @@ class DeviceUnderTest:
         """(command, count, min, median, max) of answer turnaround in seconds, per command header."""
         return [(h, len(v), min(v), statistics.median(v), max(v))
                 for h, v in sorted(self.latencies.items()) if v]
-
-    def wait_quiet(self, seconds: float) -> None:
-        """Let a move already under way finish (used after an interruption)."""
-        time.sleep(seconds)
 
 
 def is_alarm(p: Probe, code: int | None = None) -> bool:

@@ -21,7 +21,6 @@ LEAD: Final = b"0"  # docs/protocol.md "Framing": the digit zero starts every fr
 LETTER_O: Final = b"O"  # the PDF artefact a sloppy host may really send
 HEADER_WIDTH: Final = 3
 TERMINATOR: Final = b"\r\n"
-CR: Final = 0x0D
 LF: Final = 0x0A
 
 BAUD: Final = 9600
