@@ -21,6 +21,7 @@ LEAD: Final = b"0"  # docs/protocol.md "Framing": the digit zero starts every fr
 LETTER_O: Final = b"O"  # the PDF artefact a sloppy host may really send
 HEADER_WIDTH: Final = 3
 TERMINATOR: Final = b"\r\n"
+FRAME_END: Final = TERMINATOR[-1:]  # a frame ends at LF, whatever precedes it (docs/protocol.md "Framing")
 LF: Final = 0x0A
 
 BAUD: Final = 9600

@@ -12,8 +12,9 @@ import pytest
 from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, TWO_ANSWERS, two_offset
 from xac1_proto import spec
+from xac1_proto.frames import StoreCurrent
 
-NEEDS_MOTION = {*MOTION_HEADERS, "0WC"}
+NEEDS_MOTION = {*MOTION_HEADERS, StoreCurrent.HEADER}  # 0WC needs a homed axis
 KINDS = [pytest.param(h, marks=pytest.mark.xac1_motion, id=h) if h in NEEDS_MOTION else pytest.param(h, id=h)
          for h in COMMAND_HEADERS]
 
