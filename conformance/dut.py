@@ -16,7 +16,6 @@ else ``StoppedAnswering``) and every later probe fails at once without being sen
 from __future__ import annotations
 
 import statistics
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -206,8 +205,9 @@ class DeviceUnderTest:
         if check.frame is None or check.alarm is not None:
             raise DeviceAbort(f"after an alarm reset the device still gives {describe_answer(check)} "
                               f"({check.show()}): the run cannot go on")
-        # A non-alarm answer ends the run of communication errors (docs/protocol.md host duty), even when it
-        # breaks a framing rule: that is for the checks to judge, not a reason to stop talking.
+        # A non-alarm answer ends the run of communication errors (docs/protocol.md "Behaviour the vendor
+        # text states", host duty), even when it breaks a framing rule: that is for the checks to judge,
+        # not a reason to stop talking.
         self.client.rearm()
 
     def _silence(self, heard: bool) -> str:
@@ -268,10 +268,6 @@ class DeviceUnderTest:
         """(command, count, min, median, max) of answer turnaround in seconds, per command header."""
         return [(h, len(v), min(v), statistics.median(v), max(v))
                 for h, v in sorted(self.latencies.items()) if v]
-
-    def wait_quiet(self, seconds: float) -> None:
-        """Let a move already under way finish (used after an interruption)."""
-        time.sleep(seconds)
 
 
 def is_alarm(p: Probe, code: int | None = None) -> bool:

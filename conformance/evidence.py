@@ -99,10 +99,6 @@ class Probe:
         return (self.answered and command is not None and frame is not None
                 and frame.header == command.header and frame.fields() == command.fields())
 
-    @property
-    def command_header(self) -> str:
-        return self.sent[: spec.HEADER_WIDTH].decode("ascii", "replace")
-
     def show(self) -> str:
         got = wire(self.raw) if self.raw else f"no answer{self._partial()}"
         return f"{wire(self.sent)} -> {got}"

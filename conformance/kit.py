@@ -124,26 +124,26 @@ class Kit:
         """A valid command of this kind that changes nothing the restore cannot undo."""
         n = self.point(0)
         makers: dict[str, Callable[[], Frame]] = {
-            "0RP": lambda: ReadPoint(n=n),
-            "0WP": lambda: WritePoint(n=n, v=7, a=2, o=1, pos=self.safe_pos(0)),
-            "0RC": ReadCurrent,
-            "0WC": lambda: StoreCurrent(n=n),
-            "0MP": lambda: MovePoint(n=n),
-            "0MV": lambda: MoveDirect(vel=FAST_VEL, a=HIGH_A, pos=self.other_target()),
-            "0RS": ReadOutputs,
-            "0WS": lambda: WriteOutputs(o=self.snapshot.outputs),
-            "0RV": ReadVersion,
-            "0CM": lambda: SwitchMode(mode=1),
-            "0%C": AlarmReset,
+            ReadPoint.HEADER: lambda: ReadPoint(n=n),
+            WritePoint.HEADER: lambda: WritePoint(n=n, v=7, a=2, o=1, pos=self.safe_pos(0)),
+            ReadCurrent.HEADER: ReadCurrent,
+            StoreCurrent.HEADER: lambda: StoreCurrent(n=n),
+            MovePoint.HEADER: lambda: MovePoint(n=n),
+            MoveDirect.HEADER: lambda: MoveDirect(vel=FAST_VEL, a=HIGH_A, pos=self.other_target()),
+            ReadOutputs.HEADER: ReadOutputs,
+            WriteOutputs.HEADER: lambda: WriteOutputs(o=self.snapshot.outputs),
+            ReadVersion.HEADER: ReadVersion,
+            SwitchMode.HEADER: lambda: SwitchMode(mode=1),
+            AlarmReset.HEADER: AlarmReset,
         }
         return makers[header]()
 
     def prepare(self, header: str) -> None:
         """Bring the device where ``header``'s command gets its normal answer (homed for 0WC, a safe
         point for 0MP); MotionRefused when that would need motion the run does not allow."""
-        if header in ("0WC", "0MP", "0MV"):
+        if header in spec.MOVE_HEADERS or header == StoreCurrent.HEADER:
             self.require_homed()
-        if header == "0MP":
+        if header == MovePoint.HEADER:
             self.write_safe_point(0)
 
     def sample(self, header: str) -> Probe:
@@ -171,14 +171,14 @@ def _swap(raw: bytes, at: int, new: bytes) -> bytes:
 
 
 def _two_at(frame: Frame) -> int:
-    at = frame.spec().literal_offset(spec.TWO)
+    at = frame.frame_spec().literal_offset(spec.TWO)
     if at is None:
         raise ValueError(f"{frame.header} has no 2")
     return at
 
 
 def _field_at(frame_cls: type[Frame], name: str) -> int:
-    return frame_cls.spec().offsets()[name]
+    return frame_cls.frame_spec().offsets()[name]
 
 
 def _wp(kit: Kit, **over: int) -> Frame:

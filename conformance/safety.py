@@ -58,7 +58,7 @@ class PointData:
     @property
     def restorable(self) -> bool:
         """0WP can write these values back (its V and A ranges exclude the answers' 0)."""
-        fs = WritePoint.spec()
+        fs = WritePoint.frame_spec()
         return all(fs.field_range(k)[0] <= getattr(self, k) <= fs.field_range(k)[1] for k in ("v", "a", "o"))
 
     def show(self) -> str:

@@ -78,7 +78,7 @@ from xac1_proto.frames import AlarmAnswer
 from .axis import AxisEstimate
 from .records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
-NO_ANSWER_TIMEOUT_S: Final = 1.0  # docs/protocol.md silent item 17
+NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
 
 # kinds of queue entries
@@ -372,7 +372,7 @@ class Analyzer:
         cmd = w.frame
         if cmd is None or frame is None:
             return
-        if frame.spec().echo:
+        if frame.frame_spec().echo:
             if frame.fields() != cmd.fields():
                 diff = ", ".join(f"{spec.FIELDS[k].label} {v} vs {cmd.fields().get(k)}"
                                  for k, v in frame.fields().items() if cmd.fields().get(k) != v)

@@ -17,6 +17,8 @@ import sys
 import time
 from typing import TYPE_CHECKING, Any
 
+from xac1_proto import spec
+
 if TYPE_CHECKING:
     from .io.registry import Capture
 
@@ -48,13 +50,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "file or analyzer name, a raw file, pcap TX/RX")
     p.add_argument("--samplerate", type=float, metavar="HZ", default=None,
                    help="sigrok: sample rate turning sample numbers (--protocol-decoder-samplenum) into "
-                        "time (default: inferred from the byte lengths at 9600 baud)")
+                        f"time (default: inferred from the byte lengths at {spec.BAUD} baud)")
     p.add_argument("--timeout", "--no-answer-timeout", dest="no_answer_timeout", type=float, metavar="S",
                    default=None, help="no-answer timeout in seconds after a command's last byte; moves get "
-                                      "their estimated time doubled on top (default 1.0, as xac1 sniff)")
+                                      "their estimated time doubled on top "
+                                      f"(default {spec.NO_ANSWER_TIMEOUT_S}, as xac1 sniff)")
     p.add_argument("--storm-limit", type=int, default=None, metavar="N",
                    help="communication-error answers in a row after which a command is comm-error-storm "
-                        "(default 5)")
+                        f"(default {spec.STORM_LIMIT})")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text view (default: when the output is a terminal)")
 

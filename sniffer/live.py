@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable
 from typing import IO
 
+from xac1_proto import spec
 from xac1_proto.chunk import Chunk, Direction
 from xac1_proto.recording import RecordingWriter
 
@@ -85,7 +86,7 @@ def _open(path: str, name: str, baud: int) -> ReadOnlyPort:
     return ReadOnlyPort(path, name, baud)
 
 
-def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: int = 9600,
+def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: int = spec.BAUD,
           reconnect: bool = False, stop: threading.Event | None = None,
           started: threading.Event | None = None, err: IO[str] | None = None) -> int:
     """Read both taps until ``stop`` (or Ctrl-C in the caller); 0, or 1 when a tap went away for good.

@@ -20,6 +20,8 @@ from typing import IO, Protocol
 
 import serial
 
+import xac1_proto.urlhandler  # noqa: F401  (registers xac1sim:// for the controller port)
+from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 
 from .live import TICK_S, Clock, Session
@@ -37,7 +39,7 @@ class PtyHost:
     """A pseudo-terminal for the host software; ``path`` (and ``link``, a symlink to it) is what it
     opens. The proxy keeps the slave open, so the host may open and close it any number of times."""
 
-    def __init__(self, link: str | None = None, baud: int = 9600) -> None:
+    def __init__(self, link: str | None = None, baud: int = spec.BAUD) -> None:
         self.master, self._slave = os.openpty()
         self.path = os.ttyname(self._slave)
         configure_raw(self._slave, baud)
@@ -125,7 +127,7 @@ class TcpHost:
         self.server.close()
 
 
-def open_device(port: str, baud: int = 9600) -> serial.SerialBase:
+def open_device(port: str, baud: int = spec.BAUD) -> serial.SerialBase:
     """The controller's port: a path or a pyserial URL (``socket://``, ``xac1sim://``...)."""
     try:
         return serial.serial_for_url(port, baudrate=baud, timeout=TICK_S)
@@ -138,7 +140,7 @@ class Proxy:
     ``stop`` is set; returns 0, or 1 when the device port went away (without ``reconnect``)."""
 
     def __init__(self, host: HostSide, device_port: str, session: Session, clock: Clock, *,
-                 baud: int = 9600, reconnect: bool = False, err: IO[str] | None = None) -> None:
+                 baud: int = spec.BAUD, reconnect: bool = False, err: IO[str] | None = None) -> None:
         self.host = host
         self.device_port = device_port
         self.session = session

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from xac1_proto import spec
+
 from .sniff_cli import add_common_output
 
 HELP = "forward bytes between host software (pty or TCP) and the controller, decoding them on the way"
@@ -28,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     side.add_argument("--tcp", type=_tcp_address, metavar="[HOST:]PORT",
                       help="offer the host a TCP port (default host 127.0.0.1)")
     parser.add_argument("--link", metavar="PATH", help="with --pty: a symlink to the pty at PATH")
-    parser.add_argument("--baud", type=int, default=9600, help="line speed (default 9600)")
+    parser.add_argument("--baud", type=int, default=spec.BAUD, help=f"line speed (default {spec.BAUD})")
     parser.add_argument("--reconnect", action="store_true",
                         help="when the device port goes away, wait for it to come back instead of stopping")
     add_common_output(parser)

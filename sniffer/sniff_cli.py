@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from xac1_proto import spec
+
 HELP = "watch live traffic through two receive-only taps (host TX, device TX) and decode it"
 
 
@@ -13,12 +15,12 @@ def add_common_output(parser: argparse.ArgumentParser) -> None:
                         help="text: a colour line per frame (default); jsonl: one JSON object a line")
     parser.add_argument("--record", metavar="FILE",
                         help="also write every chunk to FILE (JSON lines recording, readable by xac1 decode)")
-    parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    parser.add_argument("--timeout", type=float, default=spec.NO_ANSWER_TIMEOUT_S, metavar="S",
                         help="no-answer timeout in seconds after a command's last byte; moves get their "
-                             "estimated time doubled on top (default 1.0)")
-    parser.add_argument("--storm-limit", type=int, default=5, metavar="N",
+                             f"estimated time doubled on top (default {spec.NO_ANSWER_TIMEOUT_S})")
+    parser.add_argument("--storm-limit", type=int, default=spec.STORM_LIMIT, metavar="N",
                         help="communication-error answers in a row after which a command is "
-                             "comm-error-storm (default 5)")
+                             f"comm-error-storm (default {spec.STORM_LIMIT})")
     parser.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                         help="colour in the text view (default: when the output is a terminal)")
 
@@ -28,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="serial port wired to the host's TX (what the host sends)")
     parser.add_argument("--device-tap", required=True, metavar="PORT",
                         help="serial port wired to the controller's TX (what the controller answers)")
-    parser.add_argument("--baud", type=int, default=9600, help="line speed of the taps (default 9600)")
+    parser.add_argument("--baud", type=int, default=spec.BAUD,
+                        help=f"line speed of the taps (default {spec.BAUD})")
     parser.add_argument("--reconnect", action="store_true",
                         help="when a tap goes away, wait for it to come back instead of stopping")
     add_common_output(parser)

@@ -63,7 +63,7 @@ def test_mismatch_iff_other_header(command, answer):
     other = answer.header not in (command.header, spec.ALARM_HEADER)
     assert ("answer-mismatch" in codes(violations)) == (other or (
         command.header == answer.header and hasattr(answer, "n") and hasattr(command, "n")
-        and not answer.spec().echo and answer.n != command.n))
+        and not answer.frame_spec().echo and answer.n != command.n))
 
 
 def test_answer_or_raise():

@@ -107,7 +107,7 @@ def test_every_violation_code_is_in_the_vocabulary():
 def test_build_then_parse_round_trips(frame):
     """Every frame kind over its whole field ranges: parse(to_bytes()) gives the frame back."""
     wire = frame.to_bytes()
-    assert len(wire) == frame.spec().length
+    assert len(wire) == frame.frame_spec().length
     assert x.parse(wire, frame.role) == frame
     back, violations = x.diagnose(wire, frame.role)
     assert back == frame

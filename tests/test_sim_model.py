@@ -34,8 +34,8 @@ def test_vendor_examples() -> None:
 
 
 def test_rc_before_homing_then_moves() -> None:
-    """docs/protocol.md "Behaviour": 0RC before homing is N/V/A 0, Pos FFFFFF; 0MP homes first; silent items
-    7, 8, 9 for 0RC after homing, a point move and a direct move."""
+    """docs/protocol.md "Behaviour the vendor text states": 0RC before homing is N/V/A 0, Pos FFFFFF; 0MP
+    homes first; silent items 7, 8, 9 for 0RC after homing, a point move and a direct move."""
     m = DeviceModel(INSTANT)
     assert talk(m, b"0WS22\r\n") == b"0WS22\r\n"
     assert talk(m, b"0RC\r\n") == b"0RC00022FFFFFF\r\n"
@@ -49,7 +49,8 @@ def test_rc_before_homing_then_moves() -> None:
 
 
 def test_move_homes_first_when_not_homed() -> None:
-    """docs/protocol.md "Behaviour": 0MP/0MV home first when the axis has not been homed, then move."""
+    """docs/protocol.md "Behaviour the vendor text states": 0MP/0MV home first when the axis has not been
+    homed, then move."""
     m = DeviceModel(SimConfig(time_scale=1.0, turnaround_s=0.0))
     m.receive(b"0MV3C3001388\r\n", 0.0)
     (out,) = [o for o in [m.outbox] if o.next_due is not None]
@@ -60,8 +61,8 @@ def test_move_homes_first_when_not_homed() -> None:
 
 
 def test_alarm_latch_and_reset() -> None:
-    """docs/protocol.md "Behaviour" + silent item 1: a malformed command latches 01; every command is then
-    answered 0%%01; 0%C answers 0%C00 and normal answers return."""
+    """docs/protocol.md "Behaviour the vendor text states" + silent item 1: a malformed command latches 01;
+    every command is then answered 0%%01; 0%C answers 0%C00 and normal answers return."""
     m = DeviceModel(INSTANT)
     assert talk(m, b"0RP3\n") == ALARM_01
     for cmd in (b"0RV\r\n", b"0RS\r\n", b"0WP19302012345\r\n", b"0MP0\r\n", b"0CM1\r\n"):
@@ -72,8 +73,8 @@ def test_alarm_latch_and_reset() -> None:
 
 
 def test_estop_survives_reset() -> None:
-    """docs/protocol.md "Behaviour": 0%C clears every alarm but emergency stop; silent item 3: 0%C answers
-    0%%0E, and after release the axis must home again (0RC answers FFFFFF)."""
+    """docs/protocol.md "Behaviour the vendor text states": 0%C clears every alarm but emergency stop; silent
+    item 3: 0%C answers 0%%0E, and after release the axis must home again (0RC answers FFFFFF)."""
     m = DeviceModel(INSTANT)
     talk(m, b"0MP0\r\n")
     m.set_estop(True)

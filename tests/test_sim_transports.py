@@ -88,7 +88,8 @@ class DeviceRules(RuleBasedStateMachine):
 
     @initialize()
     def power_on(self) -> None:
-        """docs/protocol.md "Behaviour": 0RC before homing answers N, V, A 0 and Pos FFFFFF."""
+        """docs/protocol.md "Behaviour the vendor text states": 0RC before homing answers N, V, A 0 and Pos
+        FFFFFF."""
         a = self.send(x.ReadCurrent())
         assert (a.n, a.v, a.a, a.pos) == (0, 0, 0, spec.UNKNOWN_POSITION)
 

@@ -127,7 +127,8 @@ def test_command_during_motion_and_overlap():
 
 def test_storm_after_fifth_comm_error():
     """After the 5th 0%%01 answer in a row (latched repeats count, a reset answer does not end the run)
-    any further command is comm-error-storm; a normal answer ends the run (docs/protocol.md "Behaviour")."""
+    any further command is comm-error-storm; a normal answer ends the run (docs/protocol.md "Behaviour the
+    vendor text states")."""
     script = []
     t = 0.0
     for _ in range(3):

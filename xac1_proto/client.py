@@ -21,6 +21,7 @@ from typing import TypeVar, cast
 import serial
 
 from . import motion, spec
+from . import urlhandler as _urlhandler  # noqa: F401  (registers xac1sim:// for serial_for_url)
 from .codec import diagnose, show_bytes
 from .errors import CommunicationHalted, ResponseTimeout
 from .exchange import Exchange, StormGuard, answer_or_raise, judge_answer
@@ -110,7 +111,8 @@ class Client:
 
     @property
     def comm_errors_in_row(self) -> int:
-        """``0%%01`` answers since the last normal answer (docs/protocol.md host duty)."""
+        """``0%%01`` answers since the last normal answer (docs/protocol.md "Behaviour the vendor text
+        states", host duty)."""
         return self._guard.in_row
 
     @property

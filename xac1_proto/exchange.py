@@ -76,12 +76,12 @@ def judge_answer(sent: bytes, raw: bytes, junk: bytes = b"") -> tuple[Frame | No
                                                    f"(answer-mismatch)"))
         return frame, out
     if command.header in _N_ANSWERED and getattr(frame, "n", None) != getattr(command, "n", None):
-        at = command.spec().offsets()["n"]
+        at = command.frame_spec().offsets()["n"]
         out.append(Violation("answer-mismatch", at, f"{frame.header} answer: byte {at}: expected N="
                                                     f"{getattr(command, 'n', 0):X} (the command's), got N="
                                                     f"{getattr(frame, 'n', 0):X} "
                                                     f"(answer-mismatch)"))
-    if frame.spec().echo and raw != sent:
+    if frame.frame_spec().echo and raw != sent:
         at = next((i for i, (a, b) in enumerate(zip(raw, sent, strict=False)) if a != b),
                   min(len(raw), len(sent)))
         out.append(Violation("echo-mismatch", at, f"{frame.header} answer: byte {at}: expected the echo "

@@ -68,7 +68,8 @@ class Frame:
         return self.ROLE
 
     @classmethod
-    def spec(cls) -> spec.FrameSpec:
+    def frame_spec(cls) -> spec.FrameSpec:
+        """This frame kind's row of ``spec.FRAME_SPECS``."""
         return spec.SPECS[(cls.HEADER, cls.ROLE)]
 
     def fields(self) -> dict[str, Any]:
@@ -79,7 +80,7 @@ class Frame:
         return bytes(grammar.STRUCTS[(self.HEADER, self.ROLE)].build(self.fields()))
 
     def __post_init__(self) -> None:
-        fs = self.spec()
+        fs = self.frame_spec()
         offsets = fs.offsets()
         for name, value in self.fields().items():
             field = spec.FIELDS[name]

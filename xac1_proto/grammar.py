@@ -16,7 +16,7 @@ import construct as cs
 from . import spec
 
 
-class Digits(cs.Adapter):  # type: ignore[misc]
+class Digits(cs.Adapter):
     """A fixed-width number written in upper-case hex or decimal digits (``text``: kept as a str)."""
 
     def __init__(self, field: spec.FieldSpec):

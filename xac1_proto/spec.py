@@ -21,7 +21,7 @@ LEAD: Final = b"0"  # docs/protocol.md "Framing": the digit zero starts every fr
 LETTER_O: Final = b"O"  # the PDF artefact a sloppy host may really send
 HEADER_WIDTH: Final = 3
 TERMINATOR: Final = b"\r\n"
-CR: Final = 0x0D
+FRAME_END: Final = TERMINATOR[-1:]  # a frame ends at LF, whatever precedes it (docs/protocol.md "Framing")
 LF: Final = 0x0A
 
 BAUD: Final = 9600
@@ -245,7 +245,7 @@ class ViolationSpec:
 
     def side(self, sender: Side) -> Side:
         """Whose fault it is when found in bytes sent by ``sender``."""
-        return sender if self.duty == SENDER else self.duty  # type: ignore[return-value]
+        return sender if self.duty == SENDER else self.duty
 
 
 _F, _B, _C = "Framing", "Behaviour the vendor text states", "Violation codes"

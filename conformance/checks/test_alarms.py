@@ -67,7 +67,7 @@ def test_estop_survives_reset(xac1_dut):
     """0%C does not clear an emergency stop: the next command still gets alarm 0E (docs/protocol.md "Behaviour
     the vendor text states": the reset clears every alarm except emergency stop)."""
     sim = getattr(xac1_dut.client.port, "model", None)
-    if not hasattr(sim, "set_estop"):
+    if sim is None or not hasattr(sim, "set_estop"):
         pytest.skip("emergency stop comes from the device's stop input, not the line: check by hand (press "
                     "the stop, send 0%C, expect 0%%0E)")
     sim.set_estop(True)

@@ -12,8 +12,9 @@ import pytest
 from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, TWO_ANSWERS, two_offset
 from xac1_proto import spec
+from xac1_proto.frames import StoreCurrent
 
-NEEDS_MOTION = {*MOTION_HEADERS, "0WC"}
+NEEDS_MOTION = {*MOTION_HEADERS, StoreCurrent.HEADER}  # 0WC needs a homed axis
 KINDS = [pytest.param(h, marks=pytest.mark.xac1_motion, id=h) if h in NEEDS_MOTION else pytest.param(h, id=h)
          for h in COMMAND_HEADERS]
 
@@ -65,7 +66,7 @@ def test_alarm_answer_framing(xac1_dut):
 
     p = xac1_dut.probe(b"0XY" + spec.TERMINATOR)
     expect(not p.timed_out, "no answer (silence) to a malformed command", p)
-    want = AlarmAnswer.spec().length
+    want = AlarmAnswer.frame_spec().length
     expect(p.raw.startswith(spec.ALARM_HEADER.encode()), f"expected an alarm answer 0%%Ec, got "
                                                            f"{describe_answer(p)}", p)
     expect(len(p.raw) == want and p.raw.endswith(spec.TERMINATOR),

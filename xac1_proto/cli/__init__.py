@@ -1,36 +1,52 @@
 """The ``xac1`` console script: one subcommand a module, imported only when it runs.
 
-Each subcommand module has ``HELP`` (one line), ``add_arguments(parser)`` and ``run(args) -> int``.
+Each subcommand module has ``HELP`` (one line; ``COMMANDS`` repeats it so that ``xac1 --help`` imports
+nothing, and a test checks the two agree), ``add_arguments(parser)`` and ``run(args) -> int``.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
 import sys
+from dataclasses import dataclass
 from typing import Final
 
 from .. import __version__
 
-# name -> module implementing it
-COMMANDS: Final[dict[str, str]] = {
-    "parse": "xac1_proto.cli.parse_cmd",
-    "sim": "xac1_proto.sim.cli",
-    "send": "xac1_proto.cli.send_cmd",
-    "console": "xac1_proto.cli.console_cmd",
-    "conformance": "conformance.cli",
-    "sniff": "sniffer.sniff_cli",
-    "proxy": "sniffer.proxy_cli",
-    "decode": "sniffer.decode_cli",
+
+@dataclass(frozen=True)
+class Subcommand:
+    """Where a subcommand lives and its one-line help (the module's ``HELP``, checked by a test)."""
+
+    module: str
+    help: str
+
+
+# name -> subcommand; ``xac1 --help`` is built from this table alone, importing nothing.
+COMMANDS: Final[dict[str, Subcommand]] = {
+    "parse": Subcommand("xac1_proto.cli.parse_cmd",
+                        "decode one frame (text with \\r\\n escapes, or hex) and explain any error"),
+    "sim": Subcommand("xac1_proto.sim.cli",
+                      "run the XA-C1 device simulator on a pseudo-terminal or a TCP port"),
+    "send": Subcommand("xac1_proto.cli.send_cmd",
+                       "send raw commands (e.g. 0RV 0RP3) to a controller and show the answers decoded"),
+    "console": Subcommand("xac1_proto.cli.console_cmd",
+                          "interactive console: named commands (read 3, home, go ...), raw frames (!0RV), "
+                          "history, help"),
+    "conformance": Subcommand("conformance.cli",
+                              "run the conformance suite against a controller (default: the built-in "
+                              "simulator) and report"),
+    "sniff": Subcommand("sniffer.sniff_cli",
+                        "watch live traffic through two receive-only taps (host TX, device TX) and "
+                        "decode it"),
+    "proxy": Subcommand("sniffer.proxy_cli",
+                        "forward bytes between host software (pty or TCP) and the controller, decoding them "
+                        "on the way"),
+    "decode": Subcommand("sniffer.decode_cli",
+                         "decode a capture file (socat, spy://, interceptty, jpnevulator, Saleae, sigrok, "
+                         "pcap, raw, jsonl)"),
 }
-
-
-def _exists(module_name: str) -> bool:
-    try:
-        return importlib.util.find_spec(module_name) is not None
-    except ModuleNotFoundError:
-        return False
 
 
 def _build(argv: list[str]) -> argparse.ArgumentParser:
@@ -41,12 +57,10 @@ def _build(argv: list[str]) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"xac1 {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     wanted = next((a for a in argv if not a.startswith("-")), None)
-    for name, module_name in COMMANDS.items():
-        if not _exists(module_name):  # a subcommand still being built
-            continue
-        module = importlib.import_module(module_name)
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
-        if name == wanted:
+    for name, command in COMMANDS.items():
+        p = sub.add_parser(name, help=command.help, description=command.help)
+        if name == wanted:  # only the chosen subcommand's module is imported
+            module = importlib.import_module(command.module)
             module.add_arguments(p)
             p.set_defaults(_run=module.run)
     return parser

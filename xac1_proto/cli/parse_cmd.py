@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
             if fixed is not None:
                 print(f"the well-formed frame is: {show_bytes(fixed)}", file=sys.stderr)
         return 2
-    fs = frame.spec()
+    fs = frame.frame_spec()
     print(frame)
     print(f"  {fs.meaning}; {fs.length} bytes")
     for name, value in frame.fields().items():

@@ -6,9 +6,7 @@ from __future__ import annotations
 from ..codec import diagnose, show_bytes
 from ..errors import AlarmError, CommunicationHalted, ProtocolError, ResponseTimeout
 from ..exchange import Exchange
-from ..spec import NOTICES
-
-LINE_END = b"\r\n"
+from ..spec import FRAME_END, NOTICES, TERMINATOR
 
 
 def command_bytes(text: str) -> bytes:
@@ -21,7 +19,7 @@ def command_bytes(text: str) -> bytes:
                          f"escapes for other bytes") from None
     if not data:
         raise ValueError("empty command; give a frame such as 0RV or 0RP3")
-    return data if data.endswith(b"\n") else data + LINE_END
+    return data if data.endswith(FRAME_END) else data + TERMINATOR
 
 
 def sent_lines(raw: bytes) -> list[str]:

@@ -10,6 +10,7 @@ Quick use::
     serial.serial_for_url("xac1sim://?time_scale=0&deviation=no-2")   # in-process, no thread
 """
 
+from .. import urlhandler as _urlhandler  # noqa: F401  (registers xac1sim://)
 from .config import DEVIATIONS, OPTIONS, LineFaults, SimConfig, config_from_options
 from .model import DeviceModel, PointData
 from .outbox import Outbox, Output

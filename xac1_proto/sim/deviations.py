@@ -13,33 +13,26 @@ from typing import Final
 from .. import spec
 from ..frames import Frame
 
-_SWAPPED: Final = frozenset({"0RP", "0RC", "0WC", "0MP"})
-
-
-def _literal_offset(fs: spec.FrameSpec, literal: spec.Literal) -> int | None:
-    at = spec.HEADER_WIDTH
-    for item in fs.layout:
-        if item == literal:
-            return at
-        at += spec.FIELDS[item].width if isinstance(item, str) else item.width
-    return None
+# "swapped-fields" spoils the answers that carry a point's V and A and are no echo (0RP, 0RC, 0WC, 0MP)
+_SWAPPED: Final = frozenset(fs.header for fs in spec.FRAME_SPECS
+                            if fs.role == spec.ANSWER and not fs.echo and {"v", "a"} <= set(fs.field_names))
 
 
 def spoil(frame: Frame, raw: bytes, deviations: frozenset[str]) -> bytes:
     """``raw`` (the frame's correct bytes) with the shape deviations applied."""
     if not deviations:
         return raw
-    fs = frame.spec()
+    fs = frame.frame_spec()
     data = bytearray(raw)
     if "swapped-fields" in deviations and frame.header in _SWAPPED and "v" in fs.offsets():
         v, a = fs.offsets()["v"], fs.offsets()["a"]
         data[v], data[a] = data[a], data[v]
     if "wrong-reset-answer" in deviations and frame.header == spec.RESET_HEADER:
-        at = _literal_offset(fs, spec.RESET_OK)
+        at = fs.literal_offset(spec.RESET_OK)
         if at is not None:
             data[at: at + spec.RESET_OK.width] = b"01"
     if "no-2" in deviations:
-        at = _literal_offset(fs, spec.TWO)
+        at = fs.literal_offset(spec.TWO)
         if at is not None:
             del data[at: at + spec.TWO.width]
     if "wrong-length" in deviations:

@@ -132,10 +132,6 @@ class DeviceModel:
         self._line_overflow = False
         self.outbox.cancel()
 
-    @property
-    def pending_line(self) -> bytes:
-        return bytes(self._line)
-
     # ---- one command ----
 
     def _decode(self, line: bytes, overflow: bool) -> fr.Frame | None:

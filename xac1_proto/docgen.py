@@ -1,0 +1,136 @@
+"""The tables of docs/protocol.md, generated from ``spec.py`` so that the page cannot drift from the code.
+
+How this works: docs/protocol.md holds marker comments ``<!-- generated: NAME -->`` ...
+``<!-- end generated -->``; ``update(text)`` replaces what lies between each pair with ``TABLES[NAME]()``
+rendered from the spec tables (``FRAME_SPECS`` for "Frames", ``ALARMS`` for "Alarms",
+``VIOLATION_SPECS`` for "Violation codes"). Everything outside the markers is hand-written and kept.
+``python -m xac1_proto.docgen --write`` rewrites the page in place; ``--check`` exits 1 when it is out of
+date (a test runs the same comparison).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Final
+
+from . import spec
+
+DEFAULT_PATH: Final = Path(__file__).resolve().parent.parent / "docs" / "protocol.md"
+END: Final = "<!-- end generated -->"
+_BLOCK: Final = re.compile(r"(<!-- generated: ([a-z-]+) -->\n)(.*?)(" + re.escape(END) + ")", re.DOTALL)
+
+_DUTY_TEXT: Final[dict[spec.Duty, str]] = {
+    spec.HOST_SIDE: "host",
+    spec.DEVICE_SIDE: "device",
+    spec.SENDER: "sender of the bytes",
+}
+
+
+class DocError(ValueError):
+    """docs/protocol.md lacks a marker pair, or names a table this module does not generate."""
+
+
+def _layout(header: str, layout: tuple[spec.Item, ...]) -> str:
+    """A frame layout as the page writes it: literal characters in backticks, field labels bare."""
+    parts = [f"`{header}`"]
+    for item in layout:
+        parts.append(spec.FIELDS[item].label if isinstance(item, str) else f"`{item.text}`")
+    return " ".join(parts)
+
+
+def frames_table() -> str:
+    """One row a header: the command and its answer, their layouts and byte counts (CR LF included)."""
+    rows = ["| cmd | meaning | command | bytes | answer | bytes |", "|---|---|---|---|---|---|"]
+    headers = list(dict.fromkeys(s.header for s in spec.FRAME_SPECS))
+    for header in headers:
+        command = spec.SPECS.get((header, spec.COMMAND))
+        answer = spec.SPECS[(header, spec.ANSWER)]
+        if command is None:
+            cmd_cells = ["-", "-"]
+            meaning = answer.meaning
+        else:
+            cmd_cells = [_layout(header, command.layout), str(command.length)]
+            meaning = command.meaning
+        echo = " (echo of the command)" if answer.echo else ""
+        ans_cells = [_layout(header, answer.layout) + echo, str(answer.length)]
+        rows.append(f"| `{header}` | {meaning} | " + " | ".join(cmd_cells + ans_cells) + " |")
+    return "\n".join(rows)
+
+
+def alarms_table() -> str:
+    """One row an alarm code the vendor lists."""
+    rows = ["| Ec | answer | meaning |", "|---|---|---|"]
+    field = spec.FIELDS["code"]
+    for code, meaning in spec.ALARMS.items():
+        shown = field.show(code)
+        text = meaning or "listed with no meaning (reserved; notice `reserved-alarm`)"
+        rows.append(f"| `{shown}` | `{spec.ALARM_HEADER}{shown}` | {text} |")
+    return "\n".join(rows)
+
+
+def violations_table() -> str:
+    """One row a violation code, in report order."""
+    rows = ["| code | severity | whose duty | meaning | rule stated in |", "|---|---|---|---|---|"]
+    for v in spec.VIOLATION_SPECS:
+        rows.append(f"| `{v.code}` | {v.severity} | {_DUTY_TEXT[v.duty]} | {v.meaning} | \"{v.section}\" |")
+    return "\n".join(rows)
+
+
+TABLES: Final[dict[str, Callable[[], str]]] = {
+    "frames": frames_table,
+    "alarms": alarms_table,
+    "violations": violations_table,
+}
+
+
+def update(text: str) -> str:
+    """``text`` with every generated block rendered afresh; raises DocError on a missing or unknown block."""
+    seen: set[str] = set()
+
+    def render(m: re.Match[str]) -> str:
+        name = m.group(2)
+        if name not in TABLES:
+            raise DocError(f"docs/protocol.md: unknown generated block {name!r}; known: {', '.join(TABLES)}")
+        seen.add(name)
+        return f"{m.group(1)}{TABLES[name]()}\n{m.group(4)}"
+
+    out = _BLOCK.sub(render, text)
+    missing = [n for n in TABLES if n not in seen]
+    if missing:
+        raise DocError(f"docs/protocol.md: no '<!-- generated: {missing[0]} -->' ... '{END}' block "
+                       f"(missing: {', '.join(missing)})")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m xac1_proto.docgen", description=__doc__.splitlines()[0])
+    parser.add_argument("--path", type=Path, default=DEFAULT_PATH,
+                        help="the page (default: docs/protocol.md)")
+    mode = parser.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--write", action="store_true", help="rewrite the generated tables in place")
+    mode.add_argument("--check", action="store_true", help="exit 1 when the tables are out of date")
+    args = parser.parse_args(argv)
+    try:
+        text = args.path.read_text(encoding="utf-8")
+        fresh = update(text)
+    except (OSError, DocError) as exc:
+        print(f"docgen: {exc}", file=sys.stderr)
+        return 2
+    if args.check:
+        if fresh != text:
+            print(f"docgen: {args.path} is out of date: run python -m xac1_proto.docgen --write",
+                  file=sys.stderr)
+            return 1
+        return 0
+    if fresh != text:
+        args.path.write_text(fresh, encoding="utf-8")
+        print(f"docgen: rewrote the generated tables of {args.path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
