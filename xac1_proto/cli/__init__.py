@@ -53,10 +53,16 @@ def _build(argv: list[str]) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ..signals import EXIT_EARLY, Interrupted, startup
+
+    startup()  # SIGINT, SIGTERM, SIGHUP before a command takes over: a quiet end, exit 2
     argv = sys.argv[1:] if argv is None else argv
-    args = _build(argv).parse_args(argv)
     try:
+        args = _build(argv).parse_args(argv)
         return int(args._run(args) or 0)
+    except Interrupted as exc:
+        print(f"xac1: stopped by {exc.name}", file=sys.stderr)
+        return EXIT_EARLY
     except KeyboardInterrupt:
         return 130
 
