@@ -32,6 +32,7 @@ Typical use::
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
@@ -71,20 +72,14 @@ def _say(err: TextIO | None, text: str) -> None:
     try:
         fd = stream.fileno()
     except (AttributeError, OSError, ValueError):
-        try:
+        with contextlib.suppress(OSError, ValueError, RuntimeError):
             stream.write(line)
             stream.flush()
-        except (OSError, ValueError, RuntimeError):
-            pass
         return
-    try:
+    with contextlib.suppress(OSError, ValueError, RuntimeError):
         stream.flush()
-    except (OSError, ValueError, RuntimeError):
-        pass
-    try:
+    with contextlib.suppress(OSError):
         os.write(fd, line.encode("utf-8", "replace"))
-    except OSError:
-        pass
 
 
 def _in_main_thread() -> bool:
