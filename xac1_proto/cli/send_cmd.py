@@ -11,6 +11,7 @@ HELP = "send raw commands (e.g. 0RV 0RP3) to a controller and show the answers d
 
 # Exit status: the first failure stops the run.
 EXIT_ALARM, EXIT_PROTOCOL, EXIT_TIMEOUT, EXIT_PORT, EXIT_USAGE = 1, 2, 3, 4, 5
+EXIT_SIGNAL = 130  # Ctrl-C, SIGTERM or SIGHUP while sending (128 + SIGINT, as shells report it)
 
 
 def _usage(message: str) -> int:
@@ -35,6 +36,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..signals import Interrupted
+
+    try:
+        return _run(args)
+    except Interrupted as exc:
+        print(f"xac1 send: stopped by {exc.name}", file=sys.stderr)
+        return EXIT_SIGNAL
+
+
+def _run(args: argparse.Namespace) -> int:
     import serial
 
     from ..client import Client

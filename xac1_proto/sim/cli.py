@@ -221,6 +221,8 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
 
 
 def _reason(error: BaseException | None) -> str:
+    if error is None:
+        return "its loop did not stop in time"
     if isinstance(error, RuntimeError) and error.args:
         return str(error)
     return repr(error)
