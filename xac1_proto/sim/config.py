@@ -224,6 +224,8 @@ def config_from_options(options: Mapping[str, str | Iterable[str]],
                 lo, _, hi = value.partition(":")
                 changes["stroke"] = (parse_int(lo), parse_int(hi))
             elif name == "seed":
+                if not value.strip().lstrip("-").isdigit():
+                    raise ValueError(f"expected an integer, got {value!r}")
                 faults["seed"] = int(value)
             elif name == "noise":
                 faults["corrupt"] = parse_probability(value)
