@@ -239,3 +239,26 @@ def test_signal_before_serving_ends_quietly_with_exit_2(tmp_path: Path) -> None:
     assert proc.returncode == 2
     assert out == ""
     assert err.strip() == "xac1 sim: stopped by SIGTERM before it was serving"
+
+
+def test_a_second_signal_does_not_cut_the_ending_short(tmp_path: Path) -> None:
+    """Two signals back to back (a double Ctrl-C, then SIGTERM from a service manager): the first ends
+    the simulator in order, the later ones are ignored (and said so, if they come while it ends); the
+    state file is written and the exit status is still 0."""
+    state = tmp_path / "table.json"
+    for i in range(6):  # odd rounds: the signals come the moment the simulator says where it serves
+        save_state(state, {1: PointData(1, 1, 0, 0x100)})
+        with xac1_sim("--tcp", "0", "--time-scale", "0", "--state", str(state)) as (proc, url):
+            if i % 2 == 0:
+                with serial.serial_for_url(url, timeout=TIMEOUT) as port:
+                    port.write(b"0WP29302012345\r\n")
+                    assert port.read_until(b"\n") == b"0WP29302012345\r\n"
+            proc.send_signal(signal.SIGINT)
+            proc.send_signal(signal.SIGINT)
+            code, err = finish(proc, signal.SIGTERM)
+        assert code == 0, err
+        assert "Traceback" not in err and "stopped by" not in err
+        assert all(line.endswith("stopping the simulator and writing the state file")
+                   for line in err.splitlines() if not line.startswith("xac1 sim: running")), err
+        written = {2: PointData(9, 3, 0, 0x12345)} if i % 2 == 0 else {}
+        assert load_state(state) == {1: PointData(1, 1, 0, 0x100), **written}

@@ -15,7 +15,8 @@ manager that installs one handler for the three and restores the previous handle
 Do the ending inside the ``with`` block: outside it the previous handlers are back. Handlers can only be
 installed from the main thread; elsewhere (a test calling a command's ``run`` from a thread) the policy
 is inert and ``stop`` is only set by whoever owns it. ``startup()`` is for the ``xac1`` dispatcher:
-until a command installs its ``OrderlyEnd``, any of the three signals raises ``Interrupted``.
+until a command installs its ``OrderlyEnd``, any of the three signals raises ``Interrupted``; ``exiting()``
+(the dispatcher, once the command returned) ignores them while the process exits.
 
 Typical use::
 
@@ -96,6 +97,15 @@ def startup() -> None:
     if _in_main_thread():
         for sig in SIGNALS:
             signal.signal(sig, _raise_interrupted)
+
+
+def exiting() -> None:
+    """The process is about to exit (its command has ended): further signals are ignored, so a late
+    second Ctrl-C cannot turn a finished run's exit status into another. For the process's entry point
+    only. No-op outside the main thread."""
+    if _in_main_thread():
+        for sig in SIGNALS:
+            signal.signal(sig, signal.SIG_IGN)
 
 
 class OrderlyEnd:

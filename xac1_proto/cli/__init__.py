@@ -53,8 +53,11 @@ def _build(argv: list[str]) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ..signals import EXIT_EARLY, Interrupted, startup
+    """Run one subcommand; ``argv`` None (the console script) means this is the process's entry: once
+    the command has ended, late signals are ignored while the process exits."""
+    from ..signals import EXIT_EARLY, Interrupted, exiting, startup
 
+    entry = argv is None
     startup()  # SIGINT, SIGTERM, SIGHUP before a command takes over: a quiet end, exit 2
     argv = sys.argv[1:] if argv is None else argv
     try:
@@ -65,6 +68,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_EARLY
     except KeyboardInterrupt:
         return 130
+    finally:
+        if entry:
+            exiting()
 
 
 if __name__ == "__main__":

@@ -196,8 +196,8 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
         return _fail(f"cannot start the simulator: {exc}")
     died = False
     try:
+        end.begin()  # serving from here: a signal now ends it in order
         print(sim.url, flush=True)
-        end.begin()
         print("xac1 sim: running; type 'help' for control commands, Ctrl-C to stop", file=sys.stderr,
               flush=True)
         died = _control_loop(sim, end)
