@@ -124,7 +124,8 @@ def open_log(path: str, transport: str) -> RecordingWriter:
 def run(args: argparse.Namespace) -> int:
     from ..signals import EXIT_EARLY, Interrupted, OrderlyEnd
 
-    with OrderlyEnd("xac1 sim", "stopping the simulator and writing the state file") as end:
+    what = "stopping the simulator" + (" and writing the state file" if args.state else "")
+    with OrderlyEnd("xac1 sim", what) as end:
         try:
             return _run(args, end)
         except Interrupted as exc:
