@@ -369,3 +369,31 @@ def test_sniff_tap_that_is_a_directory(tmp_path):
     assert done.returncode == 1
     assert done.stderr == f"error: host port {tmp_path}: is a directory, not a serial port\n"
     assert done.stdout == ""
+
+
+def test_sniff_signal_before_the_taps_are_open_ends_quietly(tmp_path):
+    """A signal during start-up (here: ``--record`` is a FIFO nobody reads, so opening it waits)
+    ends ``xac1 sniff`` quietly: one line, no summary, exit 2."""
+    import os
+
+    fifo = tmp_path / "rec.fifo"
+    os.mkfifo(fifo)
+    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "sniff", "--host-tap", "/dev/null",
+                             "--device-tap", "/dev/null", "--record", str(fifo)],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + WAIT_S
+        wchan = Path(f"/proc/{proc.pid}/wchan")
+        while wchan.read_text() != "wait_for_partner":  # opening the FIFO: waiting for a reader
+            assert time.monotonic() < deadline and proc.poll() is None, "never reached open()"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=WAIT_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 2, err
+    assert out == "" and "Traceback" not in err
+    assert err.strip().splitlines()[-1] == "xac1 sniff: stopped by SIGTERM before the taps were open"
