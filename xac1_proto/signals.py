@@ -37,9 +37,11 @@ import contextlib
 import os
 import signal
 import sys
-import threading
 from types import FrameType, TracebackType
-from typing import Any, Final, TextIO
+from typing import TYPE_CHECKING, Any, Final, TextIO
+
+if TYPE_CHECKING:
+    import threading
 
 SIGNALS: Final = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 EXIT_EARLY: Final = 2  # a signal before the run began: nothing was done
@@ -83,8 +85,17 @@ def _say(err: TextIO | None, text: str) -> None:
         os.write(fd, line.encode("utf-8", "replace"))
 
 
-def _in_main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
+def _install(handler: Any) -> dict[int, Any]:
+    """Set ``handler`` for the three signals; the handlers it replaced ({} outside the main thread,
+    where Python cannot set handlers). ``threading`` is not imported for this: ``xac1 parse`` loads
+    no thread module."""
+    previous: dict[int, Any] = {}
+    try:
+        for sig in SIGNALS:
+            previous[sig] = signal.signal(sig, handler)
+    except ValueError:  # not the main thread: nothing was set
+        return {}
+    return previous
 
 
 def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
@@ -94,18 +105,14 @@ def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
 def startup() -> None:
     """Until a command installs its own ``OrderlyEnd``: SIGINT, SIGTERM and SIGHUP raise ``Interrupted``
     (the dispatcher turns it into a quiet ``EXIT_EARLY``). No-op outside the main thread."""
-    if _in_main_thread():
-        for sig in SIGNALS:
-            signal.signal(sig, _raise_interrupted)
+    _install(_raise_interrupted)
 
 
 def exiting() -> None:
     """The process is about to exit (its command has ended): further signals are ignored, so a late
     second Ctrl-C cannot turn a finished run's exit status into another. For the process's entry point
     only. No-op outside the main thread."""
-    if _in_main_thread():
-        for sig in SIGNALS:
-            signal.signal(sig, signal.SIG_IGN)
+    _install(signal.SIG_IGN)
 
 
 class OrderlyEnd:
@@ -121,7 +128,9 @@ class OrderlyEnd:
         self.what = what
         self.interrupt = interrupt
         self.err = err
-        self.stop = threading.Event()
+        import threading  # here, not at the top: the dispatcher imports this module for every command
+
+        self.stop: threading.Event = threading.Event()
         self.signum: int | None = None
         self.early = False
         self._begun = False
@@ -155,9 +164,7 @@ class OrderlyEnd:
             raise Interrupted(signum)
 
     def __enter__(self) -> OrderlyEnd:
-        if _in_main_thread():
-            for sig in SIGNALS:
-                self._previous[sig] = signal.signal(sig, self._handle)
+        self._previous = _install(self._handle)
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
