@@ -50,6 +50,7 @@ class PtyHost:
                 os.unlink(link)
             os.symlink(self.path, link)
         self._lock = threading.Lock()
+        self._closed = False
 
     def fds(self) -> list[int]:
         return [self.master]
@@ -63,18 +64,25 @@ class PtyHost:
     def send(self, data: bytes) -> None:
         with self._lock:
             view = memoryview(data)
-            while view:
+            while view and not self._closed:  # a host that does not read holds us here, until close
                 try:
                     view = view[os.write(self.master, view):]
                 except BlockingIOError:
                     select.select([], [self.master], [], 0.1)
+                except OSError:
+                    return
 
     def close(self) -> None:
-        if self.link is not None and os.path.islink(self.link):
-            os.unlink(self.link)
-        for fd in (self.master, self._slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        if self._closed:
+            return
+        self._closed = True  # first: a send waiting for the host gives up
+        with self._lock:
+            if self.link is not None and os.path.islink(self.link):
+                with contextlib.suppress(OSError):
+                    os.unlink(self.link)
+            for fd in (self.master, self._slave):
+                with contextlib.suppress(OSError):
+                    os.close(fd)
 
 
 class TcpHost:
@@ -137,7 +145,13 @@ def open_device(port: str, baud: int = spec.BAUD) -> serial.SerialBase:
 
 class Proxy:
     """Forward between ``host`` and the device port; decode through ``session``. ``run()`` until
-    ``stop`` is set; returns 0, or 1 when the device port went away (without ``reconnect``)."""
+    ``stop`` is set; returns 0, or 1 when the device port went away (without ``reconnect``).
+
+    The device port is shared by two threads: the reader thread reads it and, when it goes away,
+    closes it and (with ``reconnect``) opens it again; the main loop writes to it and closes it at the
+    end. Every change of ``self.device`` and every write happens under ``_device_lock``; a read does not
+    hold it (a serial port reads and writes at the same time), and a port found replaced or closed
+    after a failed read is left to whoever replaced it."""
 
     def __init__(self, host: HostSide, device_port: str, session: Session, clock: Clock, *,
                  baud: int = spec.BAUD, reconnect: bool = False, err: IO[str] | None = None) -> None:
@@ -159,24 +173,45 @@ class Proxy:
             self.err.write(text + "\n")
             self.err.flush()
 
+    def _reopen(self) -> None:
+        """Try once to open the device port again (the reader thread, with ``reconnect``)."""
+        self._stop.wait(0.5)
+        try:
+            dev = open_device(self.device_port, self.baud)
+        except PortGone:
+            return
+        with self._device_lock:
+            if self._stop.is_set():  # closing: the new port is not wanted
+                with contextlib.suppress(Exception):
+                    dev.close()
+                return
+            self.device = dev
+        self._say(f"device port {self.device_port}: back, resuming")
+
+    def _gone(self, dev: serial.SerialBase, exc: BaseException) -> None:
+        """A read from ``dev`` failed: close it and say so, unless it was closed or replaced meanwhile."""
+        with self._device_lock:
+            mine = self.device is dev
+            if mine:
+                self.device = None  # from here on nobody else writes to it
+        if not mine:
+            return
+        with contextlib.suppress(Exception):
+            dev.close()
+        if not self._stop.is_set():
+            self._chunks.put(PortGone("device", self.device_port, f"went away ({exc})"))
+
     def _read_device(self) -> None:
         while not self._stop.is_set():
-            dev = self.device
+            with self._device_lock:
+                dev = self.device
             if dev is None:
-                self._stop.wait(0.5)
-                try:
-                    self.device = open_device(self.device_port, self.baud)
-                    self._say(f"device port {self.device_port}: back, resuming")
-                except PortGone:
-                    pass
+                self._reopen()
                 continue
             try:
                 data = dev.read(max(dev.in_waiting, 1))
-            except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
-                with contextlib.suppress(Exception):
-                    dev.close()
-                self.device = None
-                self._chunks.put(PortGone("device", self.device_port, f"went away ({exc})"))
+            except (serial.SerialException, OSError, TypeError, AttributeError, ValueError) as exc:
+                self._gone(dev, exc)
                 if not self.reconnect:
                     return
                 continue
@@ -185,14 +220,17 @@ class Proxy:
                 self.host.send(data)
 
     def _to_device(self, data: bytes) -> None:
-        dev = self.device
-        if dev is None:
-            self._say(f"warning: {len(data)} host bytes dropped: the device port is away")
-            return
-        try:
-            dev.write(data)
-        except (serial.SerialException, OSError) as exc:
-            self._say(f"warning: {len(data)} host bytes not delivered: {exc}")
+        with self._device_lock:
+            dev = self.device
+            if dev is None:
+                problem = "dropped: the device port is away"
+            else:
+                try:
+                    dev.write(data)
+                    return
+                except (serial.SerialException, OSError) as exc:
+                    problem = f"not delivered: {exc}"
+        self._say(f"warning: {len(data)} host bytes {problem}")
 
     def run(self, stop: threading.Event | None = None) -> int:
         stop = stop or threading.Event()
@@ -222,12 +260,24 @@ class Proxy:
         finally:
             self.close()
 
+    def drain(self) -> None:
+        """Hand the chunks still queued (seen and forwarded, not yet decoded) to the session."""
+        while True:
+            try:
+                item = self._chunks.get_nowait()
+            except queue.Empty:
+                return
+            if isinstance(item, Chunk):
+                self.session.chunk(item)
+
     def close(self) -> None:
+        """Stop the reader thread, close the device port and the host side (idempotent)."""
         self._stop.set()
         if self._reader.is_alive():
             self._reader.join(timeout=2.0)
-        if self.device is not None:
+        with self._device_lock:
+            dev, self.device = self.device, None
+        if dev is not None:
             with contextlib.suppress(Exception):
-                self.device.close()
-            self.device = None
+                dev.close()
         self.host.close()

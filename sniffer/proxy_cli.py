@@ -39,44 +39,54 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
+    from xac1_proto.signals import EXIT_EARLY, Interrupted, OrderlyEnd
+
     from .live import Clock
     from .proxy import Proxy, PtyHost, TcpHost
-    from .sniff_cli import make_session, stop_on_signals
+    from .sniff_cli import make_session
     from .taps import PortGone
 
     if args.link and not args.pty:
         print("error: --link goes with --pty", file=sys.stderr)
         return 2
-    try:
-        session = make_session(args, f"xac1 proxy --device {args.device}")
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    clock = Clock()
-    proxy = None
-    code = 0
-    try:
+    with OrderlyEnd("xac1 proxy", "stopping: the summary follows") as end:
         try:
-            host = PtyHost(args.link, args.baud) if args.pty else TcpHost(*args.tcp)
-        except OSError as exc:
-            print(f"error: cannot offer the host side: {exc}", file=sys.stderr)
-            return 1
-        try:
-            proxy = Proxy(host, args.device, session, clock, baud=args.baud, reconnect=args.reconnect,
-                          err=sys.stderr)
-        except PortGone as exc:
-            host.close()
+            session = make_session(args, f"xac1 proxy --device {args.device}")
+        except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
-            return 1
-        where = (f"pty {host.path}" + (f" (link {args.link})" if args.link else "")
-                 if isinstance(host, PtyHost) else f"tcp {host.address[0]}:{host.address[1]}")
-        print(f"proxy: host side on {where}; device {args.device}; Ctrl-C to stop", file=sys.stderr,
-              flush=True)
-        code = proxy.run(stop_on_signals())
-    except KeyboardInterrupt:
+            return 2
+        except Interrupted as exc:
+            print(f"xac1 proxy: stopped by {exc.name} before it was forwarding", file=sys.stderr)
+            return EXIT_EARLY
+        clock = Clock()
+        proxy = None
         code = 0
-    finally:
-        if proxy is not None:
-            proxy.close()
-        session.close(clock.now(), summary=proxy is not None)
-    return code
+        try:
+            try:
+                host = PtyHost(args.link, args.baud) if args.pty else TcpHost(*args.tcp)
+            except OSError as exc:
+                print(f"error: cannot offer the host side: {exc}", file=sys.stderr)
+                return 1
+            try:
+                proxy = Proxy(host, args.device, session, clock, baud=args.baud,
+                              reconnect=args.reconnect, err=sys.stderr)
+            except PortGone as exc:
+                host.close()
+                print(f"error: {exc}", file=sys.stderr)
+                return 1
+            where = (f"pty {host.path}" + (f" (link {args.link})" if args.link else "")
+                     if isinstance(host, PtyHost) else f"tcp {host.address[0]}:{host.address[1]}")
+            end.begin()
+            print(f"proxy: host side on {where}; device {args.device}; Ctrl-C to stop", file=sys.stderr,
+                  flush=True)
+            code = proxy.run(end.stop)
+        except Interrupted as exc:  # only before it was forwarding (after, a signal sets end.stop)
+            print(f"xac1 proxy: stopped by {exc.name} before it was forwarding", file=sys.stderr)
+            code = EXIT_EARLY
+        finally:
+            end.ending()
+            if proxy is not None:
+                proxy.close()
+                proxy.drain()  # what was forwarded is decoded and recorded too
+            session.close(clock.now(), summary=proxy is not None and not end.early)
+        return code

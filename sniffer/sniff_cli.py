@@ -37,68 +37,80 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_common_output(parser)
 
 
+def open_recording(path: str, source: str):  # -> RecordingWriter (import kept lazy)
+    """The writer for ``--record FILE``; ValueError with a message for people when it cannot be written."""
+    from xac1_proto.recording import RecordingWriter
+
+    try:
+        return RecordingWriter(path, source=source)
+    except OSError as exc:
+        raise ValueError(f"cannot write the recording {path}: {exc.strerror or exc}") from None
+
+
 def make_session(args: argparse.Namespace, source: str):  # -> live.Session (import kept lazy)
     import sys
-
-    from xac1_proto.recording import RecordingWriter
 
     from .analyzer import Analyzer
     from .live import Session
     from .view import make_view
 
-    if args.timeout <= 0:
-        raise ValueError(f"--timeout must be positive, got {args.timeout}")
+    if not args.timeout > 0 or args.timeout == float("inf"):
+        raise ValueError(f"--timeout must be a positive number of seconds, got {args.timeout}")
     if args.storm_limit < 1:
         raise ValueError(f"--storm-limit must be at least 1, got {args.storm_limit}")
-    recorder = None
-    if args.record:
-        try:
-            recorder = RecordingWriter(args.record, source=source)
-        except OSError as exc:
-            raise ValueError(f"cannot write the recording {args.record}: {exc.strerror}") from None
+    recorder = open_recording(args.record, source) if args.record else None
     analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit)
     return Session(analyzer, make_view(args.format, sys.stdout, args.color), recorder)
 
 
-def stop_on_signals():  # -> threading.Event (import kept lazy)
-    """An event set by Ctrl-C (SIGINT) or SIGTERM: the loop then ends between two polls, so the last
-    chunk is recorded and analysed whole before the summary."""
-    import signal
+def _started_event(end):  # (end: OrderlyEnd) -> threading.Event (imports kept lazy)
+    """The ``started`` event ``live.sniff`` sets once both taps are open: from then on a signal ends the
+    run in order (``OrderlyEnd.begin``) instead of aborting the start."""
     import threading
 
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    return stop
+    class Started(threading.Event):
+        def set(self) -> None:
+            end.begin()
+            super().set()
+
+    return Started()
 
 
 def run(args: argparse.Namespace) -> int:
     import sys
-    import threading
+
+    from xac1_proto.signals import EXIT_EARLY, Interrupted, OrderlyEnd
 
     from .live import Clock, sniff
     from .taps import PortGone
 
-    try:
-        session = make_session(args, f"xac1 sniff --host-tap {args.host_tap} --device-tap {args.device_tap}")
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    clock = Clock()
-    started = threading.Event()
-    stop = stop_on_signals()
-    code = 0
-    try:
-        code = sniff({"host": args.host_tap, "device": args.device_tap}, session, clock, baud=args.baud,
-                     reconnect=args.reconnect, stop=stop, started=started, err=sys.stderr)
-    except PortGone as exc:  # a tap that cannot be opened at the start
-        print(f"error: {exc}", file=sys.stderr)
-        code = 1
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        code = 2
-    except KeyboardInterrupt:
+    with OrderlyEnd("xac1 sniff", "stopping: the summary follows") as end:
+        try:
+            session = make_session(args, f"xac1 sniff --host-tap {args.host_tap} "
+                                         f"--device-tap {args.device_tap}")
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        except Interrupted as exc:
+            print(f"xac1 sniff: stopped by {exc.name} before the taps were open", file=sys.stderr)
+            return EXIT_EARLY
+        clock = Clock()
+        started = _started_event(end)
         code = 0
-    finally:
-        session.close(clock.now(), summary=started.is_set())
-    return code
+        try:
+            code = sniff({"host": args.host_tap, "device": args.device_tap}, session, clock,
+                         baud=args.baud, reconnect=args.reconnect, stop=end.stop,
+                         started=started, err=sys.stderr)
+        except PortGone as exc:  # a tap that cannot be opened at the start
+            print(f"error: {exc}", file=sys.stderr)
+            code = 1
+        except ValueError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            code = 2
+        except Interrupted as exc:  # only before the taps were open (after, a signal sets end.stop)
+            print(f"xac1 sniff: stopped by {exc.name} before the taps were open", file=sys.stderr)
+            code = EXIT_EARLY
+        finally:
+            end.ending()
+            session.close(clock.now(), summary=started.is_set())
+        return code

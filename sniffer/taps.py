@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import os
+import stat
 import termios
 import tty
 
@@ -63,6 +64,9 @@ class ReadOnlyPort:
             self.fd: int | None = os.open(path, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
         except OSError as exc:
             raise PortGone(name, path, f"cannot open for reading: {exc.strerror}") from None
+        if stat.S_ISDIR(os.fstat(self.fd).st_mode):
+            self.close()
+            raise PortGone(name, path, "is a directory, not a serial port")
         try:
             self._marks = MarkDecoder() if configure_raw(self.fd, baud, mark_errors=True) else None
         except (OSError, termios.error) as exc:
@@ -84,7 +88,7 @@ class ReadOnlyPort:
         except OSError as exc:
             if exc.errno in (errno.EIO, errno.ENXIO, errno.ENODEV, errno.EBADF):
                 raise PortGone(self.name, self.path, f"went away ({exc.strerror}): unplugged?") from None
-            raise
+            raise PortGone(self.name, self.path, f"cannot read: {exc.strerror or exc}") from None
         if not data:  # readable with nothing to read: end of file
             raise PortGone(self.name, self.path, "closed by the other end")
         return self._marks.feed(data) if self._marks is not None else [(data, None)]

@@ -150,3 +150,24 @@ def test_history_file_survives_sessions_and_ctrl_c_clears_the_line(tmp_path):
     finally:
         child.close(force=True)
     assert child.exitstatus == 0
+
+
+def test_scripted_console_exits_4_when_its_port_goes_away():
+    """A console driven from stdin whose port goes away ends at once with one line naming the port and
+    exit 4: the rest of the script is not run as if it had been sent."""
+    from xac1_proto.sim import SimConfig, serve_pty
+
+    with serve_pty(SimConfig(time_scale=0)) as sim:
+        proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "console", "--port", sim.path],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        assert proc.stdin is not None and proc.stdout is not None
+        proc.stdin.write("version\n")
+        proc.stdin.flush()
+        while "0RV answer" not in proc.stdout.readline():
+            pass
+        sim.stop()  # the device port goes away
+    out, err = proc.communicate("version\nread 1\n", timeout=30)
+    assert proc.returncode == 4
+    assert err.startswith(f"xac1 console: port {sim.path}: ") and err.endswith("; the console ends\n")
+    assert "0RP" not in out and "Traceback" not in err

@@ -8,13 +8,14 @@ import socket
 import threading
 import time
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sniffer.analyzer import Analyzer
 from sniffer.live import Clock, Session
 from sniffer.proxy import Proxy, TcpHost
-from xac1_proto.sim import SimConfig, serve_pty
+from xac1_proto.sim import SimConfig, serve_pty, serve_tcp
 
 COMMANDS = [b"0RV\r\n", b"0RS\r\n", b"0WS12\r\n", b"0RP1\r\n", b"xx\r\n", b"0%C\r\n", b"ORC\r\n"]
 
@@ -90,3 +91,52 @@ def test_proxy_forwards_byte_for_byte_and_decodes():
             assert b"".join(r.raw for r in view.records if getattr(r, "raw", None) is not None
                             and r.dir == d) == bytes(fed)
         assert view.summary_line["frames"]["host"] > 0
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.slow
+def test_device_port_swaps_while_the_host_writes():
+    """With ``reconnect`` the device port goes away and comes back five times while the host keeps
+    writing: each time the proxy says so, swaps the port under its lock and forwards again; closing it
+    while it waits for the port stops the reader thread and leaves no port open."""
+    import io
+
+    port = _free_port()
+    err = io.StringIO()
+    session = Session(Analyzer(), Collect())
+    clock = Clock()
+    with serve_tcp(SimConfig(time_scale=0), port=port) as first:
+        proxy = Proxy(TcpHost("127.0.0.1", 0), first.url, session, clock, reconnect=True, err=err)
+        stop = threading.Event()
+        runner = threading.Thread(target=proxy.run, args=(stop,), daemon=True)
+        runner.start()
+        with socket.create_connection(proxy.host.address, timeout=0.2) as sock:
+            sock.sendall(b"0RV\r\n")
+            assert _recv_until(sock, 1) == b"0RV100\r\n"
+    for swap in range(1, 6):  # the device is gone here; the host goes on writing into the gap
+        with socket.create_connection(proxy.host.address, timeout=0.2) as sock:
+            sock.sendall(b"0RS\r\n")
+        with serve_tcp(SimConfig(time_scale=0), port=port):
+            deadline = time.monotonic() + 5
+            while err.getvalue().count("back, resuming") < swap:
+                assert time.monotonic() < deadline, err.getvalue()
+                time.sleep(0.02)
+            with socket.create_connection(proxy.host.address, timeout=0.2) as sock:
+                sock.sendall(b"0RV\r\n")
+                assert _recv_until(sock, 1).endswith(b"0RV100\r\n")
+    # the device is gone again: close while the reader waits for it
+    deadline = time.monotonic() + 5
+    while err.getvalue().count("went away") < 6:
+        assert time.monotonic() < deadline, err.getvalue()
+        time.sleep(0.02)
+    stop.set()
+    runner.join(5)
+    assert not runner.is_alive() and not proxy._reader.is_alive()
+    assert proxy.device is None
+    assert "Traceback" not in err.getvalue()
+    session.close(clock.now())

@@ -65,3 +65,56 @@ def test_send_bad_port_and_bad_text_are_clear_errors():
     assert r.returncode == 4 and "cannot open" in r.stderr and "Traceback" not in r.stderr
     r = send(SIM, "0RV\u00e9")
     assert r.returncode == 5 and "ASCII" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_send_missing_device_is_one_clear_line():
+    """A device path that does not exist: one line in the system's words, once (no ``[Errno 2]`` twice,
+    no pyserial wording), exit 4."""
+    r = send("/dev/nonexistent-xac1", "0RV")
+    assert r.returncode == 4
+    assert r.stderr == "xac1 send: cannot open /dev/nonexistent-xac1: No such file or directory\n"
+    assert r.stdout == ""
+
+
+def test_send_refused_tcp_port_is_one_clear_line():
+    """A TCP port nobody listens on: the system's reason, once."""
+    import socket
+
+    with socket.socket() as s:  # a port that was free a moment ago
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    r = send(f"socket://127.0.0.1:{port}", "0RV")
+    assert r.returncode == 4
+    assert r.stderr == f"xac1 send: cannot open socket://127.0.0.1:{port}: Connection refused\n"
+
+
+def test_send_bad_escapes_get_our_message():
+    """A bad escape names itself and where it is, and lists the escapes there are (not Python's codec
+    message); exit 5 (bad input), nothing sent."""
+    r = send(SIM, r"0R\xZZ")
+    assert r.returncode == 5 and r.stdout == ""
+    assert r.stderr == ("xac1 send: bad escape \\xZZ at character 3 of 0R\\xZZ "
+                        "(escapes: \\r \\n \\xNN, \\\\ for a backslash)\n")
+    r = send(SIM, "0RV", r"0R\q")
+    assert r.returncode == 5 and r.stdout == "" and "bad escape \\q at character 3" in r.stderr
+
+
+def test_send_without_a_command_exits_5_as_documented():
+    """No command given is bad input: exit 5, as the README says (not argparse's 2, which would read
+    as "protocol error")."""
+    r = send(SIM)
+    assert r.returncode == 5
+    assert r.stderr == "xac1 send: no command given; e.g. xac1 send --port URL 0RV 0RP3\n"
+    r = subprocess.run([sys.executable, "-m", "xac1_proto", "send", "0RV"], capture_output=True, text=True,
+                       timeout=30)
+    assert r.returncode == 5 and "--port" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_escapes_build_the_bytes_meant():
+    """``\\r \\n \\xNN \\\\`` give the bytes they name; CR LF is added unless the text ends with LF."""
+    from xac1_proto.console.show import command_bytes
+
+    assert command_bytes("0RV") == b"0RV\r\n"
+    assert command_bytes(r"0RP3\r\n") == b"0RP3\r\n"
+    assert command_bytes(r"0R\x50\x33\n") == b"0RP3\n"
+    assert command_bytes(r"0\\") == b"0\\\r\n"

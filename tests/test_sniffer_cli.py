@@ -16,6 +16,7 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 from sniffer_wire import ScriptedHost, YCable
 
 from xac1_proto.client import Client
@@ -314,3 +315,85 @@ def test_kill_9_keeps_the_recording(tmp_path):
     for d in ("host", "device"):
         assert before[d] and kept[d].startswith(before[d]) and seen[d].startswith(kept[d])
     assert frames(decode(rec))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_sniff_every_signal_ends_in_order(tmp_path, sig):
+    """SIGINT, SIGTERM and SIGHUP all end ``xac1 sniff`` the same orderly way: one line says so, the
+    summary is printed, the recording holds every byte seen, exit 0."""
+    rec = tmp_path / "line.jsonl"
+    with serve_pty(SimConfig(time_scale=0, wire_timing=True)) as sim, YCable(sim.path) as cable, \
+            Cli("sniff", "--host-tap", cable.tap_paths["host"], "--device-tap", cable.tap_paths["device"],
+                "--format", "jsonl", "--record", str(rec)) as cli:
+        cli.wait_err("Ctrl-C to stop")
+        host = ScriptedHost(cable.host_path)
+        try:
+            assert host.ask(b"0RV\r\n") == b"0RV100\r\n"
+            cli.records(2)
+        finally:
+            host.close()
+        assert cli.finish(sig) == 0
+        no_traceback(cli)
+    assert f"xac1 sniff: {signal.Signals(sig).name}: stopping: the summary follows\n" in cli.stderr
+    live = cli.all_records()
+    assert live[-1]["type"] == "summary" and live[-1]["frames"] == {"host": 1, "device": 1}
+    assert recorded(rec) == {"host": b"0RV\r\n", "device": b"0RV100\r\n"}
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_proxy_every_signal_ends_in_order(tmp_path, sig):
+    """SIGINT, SIGTERM and SIGHUP all end ``xac1 proxy`` in order: what was forwarded is decoded and
+    recorded, the summary printed, the link removed, exit 0."""
+    rec, link = tmp_path / "proxy.jsonl", tmp_path / "xac1.tty"
+    with serve_pty(SimConfig(time_scale=0)) as sim, \
+            Cli("proxy", "--device", sim.path, "--pty", "--link", str(link), "--format", "jsonl",
+                "--record", str(rec)) as cli:
+        cli.wait_err("Ctrl-C to stop")
+        with Client(str(link)) as client:
+            client.read_version()
+            client.read_outputs()
+        assert cli.finish(sig) == 0
+        no_traceback(cli)
+    assert f"xac1 proxy: {signal.Signals(sig).name}: stopping: the summary follows\n" in cli.stderr
+    live = cli.all_records()
+    assert live[-1]["type"] == "summary" and live[-1]["frames"] == {"host": 2, "device": 2}
+    assert recorded(rec) == {"host": b"0RV\r\n0RS\r\n", "device": b"0RV100\r\n0RS02\r\n"}
+    assert not link.exists()
+
+
+def test_sniff_tap_that_is_a_directory(tmp_path):
+    """``--host-tap DIRECTORY``: one clear line naming the path, exit 1, no traceback."""
+    done = subprocess.run([sys.executable, "-m", "xac1_proto", "sniff", "--host-tap", str(tmp_path),
+                           "--device-tap", str(tmp_path / "nope")], capture_output=True, text=True,
+                          timeout=WAIT_S, stdin=subprocess.DEVNULL)
+    assert done.returncode == 1
+    assert done.stderr == f"error: host port {tmp_path}: is a directory, not a serial port\n"
+    assert done.stdout == ""
+
+
+def test_sniff_signal_before_the_taps_are_open_ends_quietly(tmp_path):
+    """A signal during start-up (here: ``--record`` is a FIFO nobody reads, so opening it waits)
+    ends ``xac1 sniff`` quietly: one line, no summary, exit 2."""
+    import os
+
+    fifo = tmp_path / "rec.fifo"
+    os.mkfifo(fifo)
+    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "sniff", "--host-tap", "/dev/null",
+                             "--device-tap", "/dev/null", "--record", str(fifo)],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + WAIT_S
+        wchan = Path(f"/proc/{proc.pid}/wchan")
+        while wchan.read_text() != "wait_for_partner":  # opening the FIFO: waiting for a reader
+            assert time.monotonic() < deadline and proc.poll() is None, "never reached open()"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=WAIT_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 2, err
+    assert out == "" and "Traceback" not in err
+    assert err.strip().splitlines()[-1] == "xac1 sniff: stopped by SIGTERM before the taps were open"

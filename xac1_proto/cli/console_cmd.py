@@ -2,7 +2,11 @@
 
 With a terminal the prompt is prompt_toolkit's (history, tab completion); without one (stdin a pipe or
 a file) lines are read plainly, so scripts can drive it too. Moving commands ask for confirmation
-unless ``--yes``.
+unless ``--yes``. A port that goes away ends the console at once (a script must not carry on as if its
+commands had been sent).
+
+Exit status: 0 ended by ``quit`` or the end of input; 4 the port could not be opened or went away;
+2 bad options.
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..client import Client
+
+EXIT_OK, EXIT_PORT = 0, 4
 
 HELP = "interactive console: named commands (read 3, home, go ...), raw frames (!0RV), history, help"
 
@@ -57,16 +63,21 @@ def _reader(history: str | None) -> tuple[Callable[[str], str], Callable[[str], 
     return session.prompt, PromptSession[str](history=InMemoryHistory()).prompt
 
 
+class PortLost(Exception):
+    """The port went away while a command was sent or answered; the message says how."""
+
+
 def run(args: argparse.Namespace) -> int:
     import serial
 
     from ..client import Client
+    from ..console.show import port_problem
 
     try:
         client = Client(args.port, timeout=args.timeout, time_scale=args.time_scale)
     except (serial.SerialException, OSError, ValueError) as exc:
-        print(f"xac1 console: cannot open {args.port}: {exc}", file=sys.stderr)
-        return 4
+        print(f"xac1 console: cannot open {args.port}: {port_problem(exc)}", file=sys.stderr)
+        return EXIT_PORT
     read_line, ask = _reader(args.history)
     print(f"xac1 console on {args.port} (9600 8N1). Type help for the commands, quit to leave.")
     with client:
@@ -75,20 +86,23 @@ def run(args: argparse.Namespace) -> int:
                 line = read_line("xac1> ")
             except EOFError:
                 print()
-                return 0
+                return EXIT_OK
             except KeyboardInterrupt:  # Ctrl-C at the prompt clears the line, as in a shell
                 continue
             try:
                 if not _run_line(client, line, ask, args.yes):
-                    return 0
+                    return EXIT_OK
             except KeyboardInterrupt:
                 print("interrupted (a move under way cannot be stopped over the line)")
+            except PortLost as exc:
+                print(f"xac1 console: port {args.port}: {exc}; the console ends", file=sys.stderr)
+                return EXIT_PORT
 
 
 def _run_line(client: Client, line: str, ask: Callable[[str], str], yes: bool) -> bool:
     """Run one console line; False when the console should end."""
     from ..console.commands import UsageError, help_text, parse_line
-    from ..console.show import answer_lines, error_line, sent_lines
+    from ..console.show import answer_lines, error_line, port_problem, sent_lines
     from ..errors import AlarmError, CommunicationHalted, ResponseTimeout, XAC1Error
     from ..exchange import answer_or_raise
     from ..spec import ALARM_ESTOP
@@ -128,9 +142,8 @@ def _run_line(client: Client, line: str, ask: Callable[[str], str], yes: bool) -
             if isinstance(exc, CommunicationHalted):
                 print("  check the equipment and the cable, then type rearm")
             return True
-        except OSError as exc:
-            print(f"port error: {exc}")
-            return True
+        except OSError as exc:  # pyserial's SerialException too: the port went away
+            raise PortLost(port_problem(exc)) from None
         print("\n".join(answer_lines(ex)), flush=True)
         try:
             answer_or_raise(ex)

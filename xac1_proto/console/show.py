@@ -3,23 +3,58 @@ alarms with their meaning, every violation named. Shared by ``xac1 send`` and ``
 
 from __future__ import annotations
 
+import os
+import re
+
 from ..codec import diagnose, show_bytes
 from ..errors import AlarmError, CommunicationHalted, ProtocolError, ResponseTimeout
 from ..exchange import Exchange
 from ..spec import FRAME_END, NOTICES, TERMINATOR
 
+_ESCAPES = {"r": b"\r", "n": b"\n", "\\": b"\\"}
+_ESCAPE_HELP = "escapes: \\r \\n \\xNN, \\\\ for a backslash"
+
 
 def command_bytes(text: str) -> bytes:
-    """The bytes a user means by ``0RP3`` or ``0RP3\\r\\n`` (escapes \\r \\n \\xNN); CR LF is added
-    when the text does not end with LF. Raises ValueError with the reason."""
-    try:
-        data = text.encode("ascii").decode("unicode_escape").encode("latin-1")
-    except UnicodeError as exc:
-        raise ValueError(f"cannot read {text!r} as a frame: {exc}; write ASCII, with \\r \\n \\xNN "
-                         f"escapes for other bytes") from None
-    if not data:
+    """The bytes a user means by ``0RP3`` or ``0RP3\\r\\n`` (escapes \\r \\n \\xNN \\\\); CR LF is
+    added when the text does not end with LF. Raises ValueError saying what is wrong and where."""
+    out = bytearray()
+    i = 0
+    while i < len(text):
+        ch = text[i]
+        if ch == "\\":
+            code = text[i + 1:i + 2]
+            if code in _ESCAPES:
+                out += _ESCAPES[code]
+                i += 2
+                continue
+            digits = text[i + 2:i + 4]
+            if code == "x" and re.fullmatch(r"[0-9A-Fa-f]{2}", digits):
+                out.append(int(digits, 16))
+                i += 4
+                continue
+            seen = text[i:i + 4] if code == "x" else text[i:i + 2]
+            raise ValueError(f"bad escape {seen} at character {i + 1} of {text} ({_ESCAPE_HELP})")
+        if not ch.isascii():
+            raise ValueError(f"character {ch} at {i + 1} of {text} is not ASCII (write bytes as \\xNN)")
+        out += ch.encode("ascii")
+        i += 1
+    if not out:
         raise ValueError("empty command; give a frame such as 0RV or 0RP3")
+    data = bytes(out)
     return data if data.endswith(FRAME_END) else data + TERMINATOR
+
+
+def port_problem(exc: BaseException) -> str:
+    """What went wrong with a port, in the operating system's words, once: pyserial wraps the OS error
+    in its own message (``could not open port X: [Errno 2] ...``); the OS error is what people need."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, OSError) and isinstance(seen.errno, int) and seen.errno > 0:
+            return os.strerror(seen.errno)
+        seen = seen.__cause__ or seen.__context__
+    text = re.sub(r"\[Errno \d+\] ", "", str(exc))
+    return re.sub(r"^(?i:could not open port) [^:]*: ", "", text) or type(exc).__name__
 
 
 def sent_lines(raw: bytes) -> list[str]:

@@ -1,20 +1,64 @@
 """``xac1 sim``: run the device simulator on a pseudo-terminal or a TCP port, controlled from stdin.
 
 The first stdout line is where to connect: the pty's device path, or ``socket://HOST:PORT``. Then each
-control command typed on stdin (``help`` lists them) prints its result. End with Ctrl-C (or SIGTERM).
+control command typed on stdin (``help`` lists them, ``control.CONTROLS`` is their one table) prints its
+result. The simulator options are one table too (``FLAGS``: flag -> simulator option of
+``config.OPTIONS``), so the flags and the ``xac1sim://`` query string check values in one place.
+
+It ends in order (``xac1_proto.signals``) on SIGINT, SIGTERM or SIGHUP, or at the end of stdin on a
+terminal (Ctrl-D): the loop is stopped, the state file written, the log closed. When stdin is not a
+terminal, its end does not stop the simulator (it serves until a signal). If the simulator's loop dies
+(a log that cannot be written, a bug), it says so at once and ends with exit 1.
+
+Exit status: 0 ended in order; 1 the simulator failed (its loop died, the state file could not be
+written); 2 bad options or a signal before it was serving.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import signal
+import select
 import sys
-import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any, Final
+
+if TYPE_CHECKING:
+    from ..recording import RecordingWriter
+    from ..signals import OrderlyEnd
+    from .model import DeviceModel
+    from .outbox import Output
+    from .runner import RunningSim
 
 HELP = "run the XA-C1 device simulator on a pseudo-terminal or a TCP port"
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+POLL_S = 0.1  # how often the control loop looks at the simulator's health and the stop event
+
+# The one table of simulator flags: flag -> (simulator option it sets, argparse keywords). The values
+# are checked by ``config.config_from_options``, the same code that checks an ``xac1sim://`` URL.
+FLAGS: Final[dict[str, tuple[str, dict[str, Any]]]] = {
+    "--time-scale": ("time_scale", {"metavar": "F", "help": "scale motion and turnaround "
+                                    "(0 = instant, default 1, at most 1000)"}),
+    "--wire-timing": ("wire_timing", {"action": "store_true",
+                                      "help": "pace answers as a 9600-baud line would"}),
+    "--version": ("version", {"metavar": "VER", "help": "firmware version 0RV answers "
+                              "(three digits, default 100)"}),
+    "--turnaround": ("turnaround", {"metavar": "MS", "help": "answer turnaround (default 2 ms, "
+                                    "at most 60000)"}),
+    "--stroke": ("stroke", {"metavar": "LO:HI", "help": "positions a move may reach (default 0:0xFFFFFE)"}),
+    "--seed": ("seed", {"metavar": "N", "help": "seed for the line faults"}),
+    "--noise": ("noise", {"metavar": "P", "help": "corrupt each answer byte with probability P"}),
+    "--drop": ("drop", {"metavar": "P", "help": "drop each answer byte with probability P"}),
+    "--delay": ("delay", {"metavar": "MS", "help": "delay every answer by MS milliseconds (at most 60000)"}),
+    "--deviation": ("deviation", {"action": "append", "metavar": "NAME",
+                                  "help": "break one stated rule on purpose (repeatable; "
+                                          "--deviation list shows them)"}),
+}
+
+
+def _dest(flag: str) -> str:
+    return "opt_" + flag.lstrip("-").replace("-", "_")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,44 +68,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--tcp", metavar="[HOST:]PORT",
                        help="serve pyserial socket:// clients (HOST default 127.0.0.1; one client at a time)")
     parser.add_argument("--link", metavar="PATH", help="with --pty: a symlink to the device path")
-    parser.add_argument("--wire-timing", action="store_true", help="pace answers as a 9600-baud line would")
-    parser.add_argument("--time-scale", type=float, default=None, metavar="F",
-                        help="scale motion and turnaround (0 = instant, default 1)")
-    parser.add_argument("--version", dest="fw_version", metavar="VER", help="firmware version 0RV answers "
-                        "(three digits, default 100)")
-    parser.add_argument("--turnaround", type=float, metavar="MS", help="answer turnaround (default 2 ms)")
-    parser.add_argument("--stroke", metavar="LO:HI", help="positions a move may reach (default 0:0xFFFFFE)")
+    for flag, (_, kwargs) in FLAGS.items():
+        parser.add_argument(flag, dest=_dest(flag), **kwargs)
     parser.add_argument("--state", metavar="FILE", help="keep the position table in FILE across runs")
     parser.add_argument("--log", metavar="FILE", help="record every byte both ways (recording format)")
-    parser.add_argument("--seed", type=int, help="seed for the line faults")
-    parser.add_argument("--noise", type=float, metavar="P",
-                        help="corrupt each answer byte with probability P")
-    parser.add_argument("--drop", type=float, metavar="P", help="drop each answer byte with probability P")
-    parser.add_argument("--delay", type=float, metavar="MS", help="delay every answer by MS milliseconds")
     parser.add_argument("--estop", action="store_true", help="start with the emergency stop input on")
-    parser.add_argument("--deviation", action="append", default=[], metavar="NAME",
-                        help="break one stated rule on purpose (repeatable; --deviation list shows them)")
     parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                         help="any simulator option (the xac1sim:// query options), e.g. accept_lowercase=1")
 
 
-def _options(args: argparse.Namespace) -> dict[str, Any]:
-    opts: dict[str, Any] = {}
+def _options(args: argparse.Namespace) -> dict[str, list[str]]:
+    """The simulator options the command line gives (``--option`` first, the named flags over it)."""
+    opts: dict[str, list[str]] = {}
     for item in args.option:
         key, sep, value = item.partition("=")
         if not sep:
             raise ValueError(f"--option {item!r}: expected KEY=VALUE")
         opts.setdefault(key.strip(), []).append(value.strip())
-    simple = {"time_scale": args.time_scale, "version": args.fw_version, "turnaround": args.turnaround,
-              "stroke": args.stroke, "seed": args.seed, "noise": args.noise, "drop": args.drop,
-              "delay": args.delay}
-    for key, value in simple.items():
-        if value is not None:
-            opts[key] = [str(value)]
-    if args.wire_timing:
-        opts["wire_timing"] = ["1"]
-    if args.deviation:
-        opts["deviation"] = args.deviation
+    for flag, (option, _) in FLAGS.items():
+        value = getattr(args, _dest(flag))
+        if value in (None, False):
+            continue
+        if value is True:
+            opts[option] = ["1"]
+        elif isinstance(value, list):
+            opts[option] = [str(v) for v in value]
+        else:
+            opts[option] = [str(value)]
     return opts
 
 
@@ -78,21 +111,42 @@ def _tcp_address(text: str) -> tuple[str, int]:
 
 def _fail(message: str) -> int:
     print(f"xac1 sim: error: {message}", file=sys.stderr)
-    return 2
+    return EXIT_USAGE
+
+
+def open_log(path: str, transport: str) -> RecordingWriter:
+    """The writer for ``--log FILE`` (OSError when it cannot be written)."""
+    from ..recording import RecordingWriter
+
+    return RecordingWriter(path, source=f"xac1 sim ({transport})")
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..signals import EXIT_EARLY, Interrupted, OrderlyEnd
+
+    what = "stopping the simulator" + (" and writing the state file" if args.state else "")
+    with OrderlyEnd("xac1 sim", what) as end:
+        try:
+            return _run(args, end)
+        except Interrupted as exc:
+            if not end.early:
+                raise
+            print(f"xac1 sim: stopped by {exc.name} before it was serving", file=sys.stderr)
+            return EXIT_EARLY
+
+
+def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
+    from ..chunk import Chunk
     from ..errors import XAC1Error
-    from . import control
     from .config import DEVIATIONS, config_from_options
     from .model import DeviceModel
     from .runner import serve_pty, serve_tcp
     from .state import load_state, save_state
 
-    if args.deviation == ["list"]:
+    if args.opt_deviation == ["list"]:
         for name, (rule, section) in DEVIATIONS.items():
             print(f"{name:28} {rule} [docs/protocol.md: {section}]")
-        return 0
+        return EXIT_OK
     if args.link and not args.pty:
         return _fail("--link goes with --pty")
     try:
@@ -107,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
 
     save_errors: list[str] = []
 
-    def on_table_change(m: DeviceModel) -> None:
+    def save(m: DeviceModel) -> None:
         try:
             save_state(args.state, m.points)
         except OSError as exc:
@@ -116,60 +170,108 @@ def run(args: argparse.Namespace) -> int:
 
     writer = None
     if args.log:
-        from ..chunk import Chunk
-        from ..recording import RecordingWriter
         try:
-            writer = RecordingWriter(args.log, source=f"xac1 sim ({'pty' if args.pty else 'tcp'})")
+            writer = open_log(args.log, "pty" if args.pty else "tcp")
         except OSError as exc:
-            return _fail(f"cannot write the log {args.log}: {exc}")
+            return _fail(f"cannot write the log {args.log}: {exc.strerror or exc}")
 
     def on_traffic(direction: str, data: bytes) -> None:
         if writer is not None:
-            writer.write(Chunk(time.time(), direction, data))  # type: ignore[arg-type]
+            try:
+                writer.write(Chunk(time.time(), direction, data))  # type: ignore[arg-type]
+            except OSError as exc:
+                raise RuntimeError(f"cannot write the log {args.log}: {exc.strerror or exc}") from None
 
     try:
         if args.pty:
             ctx = serve_pty(model=model, link=args.link, on_traffic=on_traffic,
-                            on_table_change=on_table_change if args.state else None)
+                            on_table_change=save if args.state else None)
         else:
             assert address is not None
             ctx = serve_tcp(model=model, host=address[0], port=address[1], on_traffic=on_traffic,
-                            on_table_change=on_table_change if args.state else None)
+                            on_table_change=save if args.state else None)
         sim = ctx.__enter__()
     except OSError as exc:
         if writer is not None:
             writer.close()
         return _fail(f"cannot start the simulator: {exc}")
+    died = False
     try:
+        end.begin()  # serving from here: a signal now ends it in order
         print(sim.url, flush=True)
-        print("xac1 sim: running; type 'help' for control commands, Ctrl-C to stop", file=sys.stderr)
-        _control_loop(sim, control)
-    except KeyboardInterrupt:
-        pass
+        print("xac1 sim: running; type 'help' for control commands, Ctrl-C to stop", file=sys.stderr,
+              flush=True)
+        died = _control_loop(sim, end)
     finally:
-        ctx.__exit__(None, None, None)
-        if writer is not None:
-            writer.close()
-    return 1 if save_errors else 0
-
-
-def _control_loop(sim: Any, control: Any) -> None:
-    """Read control commands from stdin until EOF, then wait for Ctrl-C / SIGTERM."""
-    stop = threading.Event()
-
-    def on_term(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, on_term)
-    for line in sys.stdin:
+        end.ending()
         try:
-            text, _ = sim.call(lambda model, now, line=line: control.apply(model, line, now))
-        except ValueError as exc:
-            text = f"error: {exc}"
-        if text:
-            print(text, flush=True)
-    if os.isatty(0):  # Ctrl-D on a terminal: the user is done
-        return
-    while not stop.wait(3600):  # stdin closed (run in the background): serve until a signal
-        pass
+            ctx.__exit__(None, None, None)
+        except RuntimeError:
+            died = True  # said below
+        if died:
+            print(f"xac1 sim: error: the simulator stopped: {_reason(sim.server.error)}", file=sys.stderr)
+        if args.state and not died:
+            save(model)  # the last word: the table as the run left it
+        if writer is not None:
+            try:
+                writer.close()
+            except OSError as exc:
+                print(f"xac1 sim: error: cannot write the log {args.log}: {exc}", file=sys.stderr)
+                died = True
+    return EXIT_FAILED if died or save_errors else EXIT_OK
+
+
+def _reason(error: BaseException | None) -> str:
+    if error is None:
+        return "its loop did not stop in time"
+    if isinstance(error, RuntimeError) and error.args:
+        return str(error)
+    return repr(error)
+
+
+def _control_loop(sim: RunningSim, end: OrderlyEnd, stdin_fd: int = 0) -> bool:
+    """Run control commands from ``stdin_fd`` until a signal (``end.stop``), the end of stdin on a
+    terminal, or the simulator's loop dies; True in that last case."""
+    from . import control
+
+    pending = b""
+    stdin_open = True
+    while not end.stop.is_set():
+        if sim.failed.is_set():
+            return True
+        if not stdin_open:
+            end.stop.wait(POLL_S)
+            continue
+        try:
+            ready = select.select([stdin_fd], [], [], POLL_S)[0]
+        except (OSError, ValueError):  # no stdin at all
+            stdin_open = False
+            continue
+        if not ready:
+            continue
+        try:
+            data = os.read(stdin_fd, 4096)
+        except (BlockingIOError, InterruptedError):
+            continue
+        except OSError:
+            data = b""
+        if not data:
+            stdin_open = False
+            if os.isatty(stdin_fd):  # Ctrl-D on a terminal: the user is done
+                return False
+            continue  # stdin closed (run in the background): serve until a signal
+        pending += data
+        *lines, pending = pending.split(b"\n")
+        for raw in lines:
+            line = raw.decode("utf-8", "replace")
+
+            def apply(model: DeviceModel, now: float, line: str = line) -> tuple[str, list[Output]]:
+                return control.apply(model, line, now)
+
+            try:
+                text, _ = sim.call(apply)
+            except ValueError as exc:
+                text = f"error: {exc}"
+            if text:
+                print(text, flush=True)
+    return sim.failed.is_set()

@@ -12,12 +12,57 @@ on purpose (the conformance suite proves itself against them); they are not faul
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Final
 
 from .. import spec
 from ..motion import DEFAULT_SPEEDS, SpeedTable
+
+# Bounds on times the simulator waits (a wait beyond them is a typo, not a test): non-finite or absurd
+# values would make the simulator's loop sleep for ever or die; they are refused where they enter.
+MAX_WAIT_MS: Final = 60_000.0  # turnaround, answer delay, the ``slow`` control command
+MAX_TIME_SCALE: Final = 1000.0
+
+
+def parse_ms(text: str) -> float:
+    """Milliseconds 0..MAX_WAIT_MS as seconds; ValueError saying what was expected."""
+    try:
+        ms = float(text)
+    except ValueError:
+        raise ValueError(f"expected milliseconds, got {text!r}") from None
+    if not (math.isfinite(ms) and 0 <= ms <= MAX_WAIT_MS):
+        raise ValueError(f"expected milliseconds 0..{MAX_WAIT_MS:g}, got {text!r}")
+    return ms / 1000.0
+
+
+def parse_probability(text: str) -> float:
+    """A probability 0..1; ValueError saying what was expected."""
+    try:
+        p = float(text)
+    except ValueError:
+        raise ValueError(f"expected a probability 0..1, got {text!r}") from None
+    if not 0 <= p <= 1:  # also false for NaN
+        raise ValueError(f"expected a probability 0..1, got {text!r}")
+    return p
+
+
+def parse_time_scale(text: str) -> float:
+    """A time scale 0..MAX_TIME_SCALE (0 = instant)."""
+    try:
+        f = float(text)
+    except ValueError:
+        raise ValueError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(f) and 0 <= f <= MAX_TIME_SCALE):
+        raise ValueError(f"expected a time scale 0..{MAX_TIME_SCALE:g} (0 = instant), got {text!r}")
+    return f
+
+
+def _check_wait(name: str, seconds: float) -> None:
+    if not (math.isfinite(seconds) and 0 <= seconds <= MAX_WAIT_MS / 1000.0):
+        raise ValueError(f"{name} must be 0..{MAX_WAIT_MS:g} ms, got {seconds * 1000:g} ms")
+
 
 # name -> (rule broken, docs/protocol.md section). Each deviation breaks exactly one stated rule.
 DEVIATIONS: Final[dict[str, tuple[str, str]]] = {
@@ -64,10 +109,9 @@ class LineFaults:
     def __post_init__(self) -> None:
         for name in ("corrupt", "drop", "delay"):
             p = getattr(self, name)
-            if not 0.0 <= p <= 1.0:
+            if not 0.0 <= p <= 1.0:  # also false for NaN
                 raise ValueError(f"line fault {name}: probability must be 0..1, got {p}")
-        if self.delay_s < 0:
-            raise ValueError(f"line fault delay_s must be >= 0, got {self.delay_s}")
+        _check_wait("line fault delay", self.delay_s)
 
     @property
     def active(self) -> bool:
@@ -100,10 +144,9 @@ class SimConfig:
     def __post_init__(self) -> None:
         if not (len(self.version) == 3 and self.version.isdigit() and self.version.isascii()):
             raise ValueError(f"version must be three digits (100 = 1.00), got {self.version!r}")
-        if self.time_scale < 0:
-            raise ValueError(f"time_scale must be >= 0, got {self.time_scale}")
-        if self.turnaround_s < 0:
-            raise ValueError(f"turnaround must be >= 0, got {self.turnaround_s}")
+        if not (math.isfinite(self.time_scale) and 0 <= self.time_scale <= MAX_TIME_SCALE):
+            raise ValueError(f"time_scale must be 0..{MAX_TIME_SCALE:g}, got {self.time_scale}")
+        _check_wait("turnaround", self.turnaround_s)
         lo, hi = self.stroke
         if not 0 <= lo <= hi < spec.UNKNOWN_POSITION:
             raise ValueError(f"stroke must be LO:HI with 0 <= LO <= HI <= 0xFFFFFE, got {lo:#x}:{hi:#x}")
@@ -119,16 +162,16 @@ class SimConfig:
 # ---- string options: one table for the xac1sim:// query string and the CLI ----
 
 OPTIONS: Final[dict[str, str]] = {
-    "time_scale": "float; motion and turnaround scale, 0 = instant (default 1)",
+    "time_scale": "float 0..1000; motion and turnaround scale, 0 = instant (default 1)",
     "wire_timing": "0/1; pace answers at 9600 baud (default 0)",
     "version": "three digits, 0RV's answer (default 100)",
-    "turnaround": "milliseconds from a command's last byte to its answer (default 2)",
+    "turnaround": "milliseconds (0..60000) from a command's last byte to its answer (default 2)",
     "stroke": "LO:HI positions a move may reach, decimal or 0x-hex (default 0:0xFFFFFE)",
     "deviation": "a name from DEVIATIONS; repeat or comma-separate for several",
     "seed": "int; seeds the line faults",
     "noise": "probability a sent byte is corrupted",
     "drop": "probability a sent byte is lost",
-    "delay": "milliseconds an answer is delayed (with probability delay_p, default 1)",
+    "delay": "milliseconds (0..60000) an answer is delayed (with probability delay_p, default 1)",
     "delay_p": "probability an answer is delayed",
     "accept_lowercase": "0/1; silent item 2",
     "estop_rehome": "0/1; silent item 3",
@@ -172,25 +215,27 @@ def config_from_options(options: Mapping[str, str | Iterable[str]],
                 for v in values:
                     deviations.update(x.strip() for x in v.split(",") if x.strip())
             elif name == "time_scale":
-                changes["time_scale"] = float(value)
+                changes["time_scale"] = parse_time_scale(value)
             elif name == "version":
                 changes["version"] = value
             elif name == "turnaround":
-                changes["turnaround_s"] = float(value) / 1000.0
+                changes["turnaround_s"] = parse_ms(value)
             elif name == "stroke":
                 lo, _, hi = value.partition(":")
                 changes["stroke"] = (parse_int(lo), parse_int(hi))
             elif name == "seed":
+                if not value.strip().lstrip("-").isdigit():
+                    raise ValueError(f"expected an integer, got {value!r}")
                 faults["seed"] = int(value)
             elif name == "noise":
-                faults["corrupt"] = float(value)
+                faults["corrupt"] = parse_probability(value)
             elif name == "drop":
-                faults["drop"] = float(value)
+                faults["drop"] = parse_probability(value)
             elif name == "delay":
-                faults["delay_s"] = float(value) / 1000.0
+                faults["delay_s"] = parse_ms(value)
                 faults.setdefault("delay", 1.0)
             elif name == "delay_p":
-                faults["delay"] = float(value)
+                faults["delay"] = parse_probability(value)
             elif name.endswith("_alarm"):
                 changes[name] = int(value, 16)
             else:

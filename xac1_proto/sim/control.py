@@ -9,24 +9,13 @@ Commands: ``help``, ``status``, ``estop on|off``, ``alarm CODE``, ``fault CODE``
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Final
 
 from .. import spec
-from .config import DEVIATIONS
+from .config import DEVIATIONS, MAX_WAIT_MS, parse_ms, parse_probability
 from .model import MEMORY_FAULTS, MOVE_FAULTS, DeviceModel, Output
-
-HELP: Final = """\
-commands:
-  status                 show the device state
-  estop on|off           emergency stop input (on: every answer becomes 0%%0E)
-  alarm CODE             latch an alarm now (hex: 04 06 08 09 0A 0B 0E ...)
-  fault CODE             next move fails (09 limit, 0B homing, 0A pulse) or memory access (04, 06)
-  noise P | drop P       corrupt / drop each answer byte with probability P (0 turns it off)
-  delay MS [P]           delay answers by MS milliseconds (with probability P, default 1)
-  seed N                 reseed the line faults
-  slow MS                extra turnaround before every answer
-  deviation [NAME [off]] list deviations, or switch one on (off)
-  help                   this text"""
 
 
 def _code(text: str) -> int:
@@ -36,24 +25,11 @@ def _code(text: str) -> int:
         raise ValueError(f"expected a hex alarm code like 0B, got {text!r}") from None
 
 
-def _prob(text: str) -> float:
-    try:
-        p = float(text)
-    except ValueError:
-        raise ValueError(f"expected a probability 0..1, got {text!r}") from None
-    if not 0 <= p <= 1:
-        raise ValueError(f"expected a probability 0..1, got {text!r}")
-    return p
-
-
-def _ms(text: str) -> float:
-    try:
-        ms = float(text)
-    except ValueError:
-        raise ValueError(f"expected milliseconds, got {text!r}") from None
-    if ms < 0:
-        raise ValueError(f"expected milliseconds >= 0, got {text!r}")
-    return ms / 1000.0
+def _on_off(text: str) -> bool:
+    low = text.lower()
+    if low not in ("on", "off"):
+        raise ValueError(f"expected on or off, got {text!r}")
+    return low == "on"
 
 
 def status_text(model: DeviceModel, t: float) -> str:
@@ -77,74 +53,116 @@ def status_text(model: DeviceModel, t: float) -> str:
     return "\n".join(lines)
 
 
-def apply(model: DeviceModel, line: str, t: float) -> tuple[str, list[Output]]:
+Result = tuple[str, list[Output]]
+
+
+@dataclass(frozen=True)
+class Control:
+    """One control command: its usage line, what it does, how many words it takes, and the action."""
+
+    usage: str
+    help: str
+    nargs: tuple[int, ...]  # accepted numbers of arguments
+    run: Callable[[DeviceModel, list[str], float], Result]
+
+
+def _estop(model: DeviceModel, args: list[str], t: float) -> Result:
+    on = _on_off(args[0])
+    return f"emergency stop {'ON' if on else 'off'}", model.set_estop(on, t)
+
+
+def _alarm(model: DeviceModel, args: list[str], t: float) -> Result:
+    code = _code(args[0])
+    outs = model.raise_alarm(code, t)
+    return f"alarm {code:02X} latched ({spec.alarm_meaning(code)})", outs
+
+
+def _fault(model: DeviceModel, args: list[str], t: float) -> Result:
+    code = _code(args[0])
+    if code in MOVE_FAULTS:
+        model.fail_next_move(code)
+        return f"next move fails with {code:02X} ({spec.alarm_meaning(code)})", []
+    if code in MEMORY_FAULTS:
+        model.fail_next_memory(code)
+        return f"next memory access fails with {code:02X} ({spec.alarm_meaning(code)})", []
+    raise ValueError(f"fault CODE: one of 09 0B 0A (moves) or 04 06 (memory), got {args[0]}")
+
+
+def _line_faults(model: DeviceModel, changes: dict[str, object]) -> Result:
+    faults = dataclasses.replace(model.config.faults, **changes)  # type: ignore[arg-type]
+    model.set_line_faults(faults)
+    return (f"line faults: noise {faults.corrupt} drop {faults.drop} delay {faults.delay_s * 1000:g} ms "
+            f"p={faults.delay} seed {faults.seed}"), []
+
+
+def _seed(model: DeviceModel, args: list[str], t: float) -> Result:
+    try:
+        seed = int(args[0])
+    except ValueError:
+        raise ValueError(f"expected an integer seed, got {args[0]!r}") from None
+    return _line_faults(model, {"seed": seed})
+
+
+def _delay(model: DeviceModel, args: list[str], t: float) -> Result:
+    delay_s = parse_ms(args[0])
+    p = parse_probability(args[1]) if len(args) == 2 else (1.0 if delay_s else 0.0)
+    return _line_faults(model, {"delay_s": delay_s, "delay": p})
+
+
+def _slow(model: DeviceModel, args: list[str], t: float) -> Result:
+    model.slow_turnaround_s = parse_ms(args[0])
+    return f"extra turnaround {model.slow_turnaround_s * 1000:g} ms", []
+
+
+def _deviation(model: DeviceModel, args: list[str], t: float) -> Result:
+    if not args:
+        enabled = set(model.config.deviations)
+        return "\n".join(f"{'*' if n in enabled else ' '} {n:28} {rule}"
+                         for n, (rule, _) in DEVIATIONS.items()), []
+    on = _on_off(args[1]) if len(args) == 2 else True
+    model.set_deviation(args[0], on)
+    return f"deviation {args[0]} {'on' if on else 'off'}", []
+
+
+# The one table of control commands: ``help`` and ``apply`` are both made from it.
+CONTROLS: Final[dict[str, Control]] = {
+    "status": Control("status", "show the device state", (0,),
+                      lambda m, a, t: (status_text(m, t), [])),
+    "estop": Control("estop on|off", "emergency stop input (on: every answer becomes 0%%0E)", (1,), _estop),
+    "alarm": Control("alarm CODE", "latch an alarm now (hex: 04 06 08 09 0A 0B 0E ...)", (1,), _alarm),
+    "fault": Control("fault CODE", "next move fails (09 limit, 0B homing, 0A pulse) or memory access "
+                     "(04, 06)", (1,), _fault),
+    "noise": Control("noise P", "corrupt each answer byte with probability P (0 turns it off)", (1,),
+                     lambda m, a, t: _line_faults(m, {"corrupt": parse_probability(a[0])})),
+    "drop": Control("drop P", "drop each answer byte with probability P (0 turns it off)", (1,),
+                    lambda m, a, t: _line_faults(m, {"drop": parse_probability(a[0])})),
+    "delay": Control("delay MS [P]", f"delay answers by MS milliseconds (0..{MAX_WAIT_MS:g}; with "
+                     "probability P, default 1)", (1, 2), _delay),
+    "seed": Control("seed N", "reseed the line faults", (1,), _seed),
+    "slow": Control("slow MS", f"extra turnaround before every answer (0..{MAX_WAIT_MS:g} ms)", (1,), _slow),
+    "deviation": Control("deviation [NAME [on|off]]", "list deviations, or switch one on (off)", (0, 1, 2),
+                         _deviation),
+    "help": Control("help", "this text", (0,), lambda m, a, t: (help_text(), [])),
+}
+
+
+def help_text() -> str:
+    width = max(len(c.usage) for c in CONTROLS.values())
+    return "commands:\n" + "\n".join(f"  {c.usage:<{width}}  {c.help}" for c in CONTROLS.values())
+
+
+def apply(model: DeviceModel, line: str, t: float) -> Result:
     """Run one control command; (text to show, answers it scheduled). ValueError for a bad command."""
     words = line.split()
     if not words:
         return "", []
-    cmd, args = words[0].lower(), words[1:]
-
-    def need(n: int, usage: str) -> None:
-        if len(args) != n:
-            raise ValueError(f"usage: {usage}")
-
-    if cmd == "help":
-        return HELP, []
-    if cmd == "status":
-        return status_text(model, t), []
-    if cmd == "estop":
-        need(1, "estop on|off")
-        if args[0].lower() not in ("on", "off"):
-            raise ValueError("usage: estop on|off")
-        on = args[0].lower() == "on"
-        outs = model.set_estop(on, t)
-        return f"emergency stop {'ON' if on else 'off'}", outs
-    if cmd == "alarm":
-        need(1, "alarm CODE")
-        code = _code(args[0])
-        outs = model.raise_alarm(code, t)
-        return f"alarm {code:02X} latched ({spec.alarm_meaning(code)})", outs
-    if cmd == "fault":
-        need(1, "fault CODE")
-        code = _code(args[0])
-        if code in MOVE_FAULTS:
-            model.fail_next_move(code)
-            return f"next move fails with {code:02X} ({spec.alarm_meaning(code)})", []
-        if code in MEMORY_FAULTS:
-            model.fail_next_memory(code)
-            return f"next memory access fails with {code:02X} ({spec.alarm_meaning(code)})", []
-        raise ValueError(f"fault CODE: one of 09 0B 0A (moves) or 04 06 (memory), got {args[0]}")
-    if cmd in ("noise", "drop", "seed", "delay"):
-        faults = model.config.faults
-        if cmd == "noise":
-            need(1, "noise P")
-            faults = dataclasses.replace(faults, corrupt=_prob(args[0]))
-        elif cmd == "drop":
-            need(1, "drop P")
-            faults = dataclasses.replace(faults, drop=_prob(args[0]))
-        elif cmd == "seed":
-            need(1, "seed N")
-            faults = dataclasses.replace(faults, seed=int(args[0]))
-        else:
-            if len(args) not in (1, 2):
-                raise ValueError("usage: delay MS [P]")
-            p = _prob(args[1]) if len(args) == 2 else (1.0 if _ms(args[0]) else 0.0)
-            faults = dataclasses.replace(faults, delay_s=_ms(args[0]), delay=p)
-        model.set_line_faults(faults)
-        return f"line faults: noise {faults.corrupt} drop {faults.drop} delay {faults.delay_s * 1000:g} ms " \
-               f"p={faults.delay} seed {faults.seed}", []
-    if cmd == "slow":
-        need(1, "slow MS")
-        model.slow_turnaround_s = _ms(args[0])
-        return f"extra turnaround {model.slow_turnaround_s * 1000:g} ms", []
-    if cmd == "deviation":
-        if not args:
-            enabled = set(model.config.deviations)
-            return "\n".join(f"{'*' if n in enabled else ' '} {n:28} {rule}"
-                             for n, (rule, _) in DEVIATIONS.items()), []
-        if len(args) > 2 or (len(args) == 2 and args[1].lower() not in ("on", "off")):
-            raise ValueError("usage: deviation [NAME [on|off]]")
-        on_flag = len(args) == 1 or args[1].lower() == "on"
-        model.set_deviation(args[0], on_flag)
-        return f"deviation {args[0]} {'on' if on_flag else 'off'}", []
-    raise ValueError(f"unknown control command {cmd!r}; type help")
+    control = CONTROLS.get(words[0].lower())
+    if control is None:
+        raise ValueError(f"unknown control command {words[0]!r}; type help")
+    args = words[1:]
+    if len(args) not in control.nargs:
+        raise ValueError(f"usage: {control.usage}")
+    try:
+        return control.run(model, args, t)
+    except ValueError as exc:
+        raise ValueError(f"{control.usage}: {exc}") from None

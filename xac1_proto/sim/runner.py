@@ -10,7 +10,13 @@ injection from another thread (``RunningSim.call``) is safe; it wakes the loop s
   may open and close ``path`` any number of times (the device keeps its state, like a serial line).
 - TCP: binds 127.0.0.1 unless told otherwise; one client at a time (a second connection is accepted and
   closed at once); the device state survives reconnections; when a client goes, its partial line and
-  unsent answers are forgotten.
+  unsent answers are forgotten. A client's end of file is always served before a new connection is
+  looked at, so a client that connects just as the previous one closes is served, not turned away.
+- Back-pressure: answers the other side does not read wait in a buffer of at most ``MAX_PENDING_OUT``
+  bytes (plus what one read can cause); while it is full the simulator stops reading that side, so a
+  client that writes but never reads is slowed down by its own socket, and memory stays bounded.
+- A loop that dies (an exception: a log that cannot be written, a bug) sets ``SimServer.failed`` and
+  keeps the exception in ``SimServer.error``; ``xac1 sim`` watches it and stops at once.
 
 ``serve_pty`` and ``serve_tcp`` are context managers for tests and tools: they start the loop in a
 daemon thread and stop it (joined, every descriptor closed) on exit.
@@ -34,6 +40,10 @@ from .config import SimConfig
 from .model import DeviceModel
 
 Traffic = Callable[[str, bytes], None]  # (direction "host"|"device", bytes)
+
+READ_SIZE = 4096  # bytes read at a time from the other side
+MAX_PENDING_OUT = 65536  # answer bytes held for a side that does not read before it is no longer read
+MAX_SLEEP_S = 60.0  # the loop wakes at least this often, whatever the outbox says
 
 
 class Transport(Protocol):
@@ -65,14 +75,14 @@ class PtyTransport:
             os.symlink(self.path, self.link)
 
     def read_fds(self) -> list[int]:
-        return [self.master]
+        return [self.master] if len(self._out) < MAX_PENDING_OUT else []  # back-pressure
 
     def write_fds(self) -> list[int]:
         return [self.master] if self._out else []
 
     def on_readable(self, fd: int) -> bytes | None:
         try:
-            return os.read(self.master, 4096) or None
+            return os.read(self.master, READ_SIZE) or None
         except (BlockingIOError, InterruptedError):
             return None
         except OSError as exc:  # EIO: no client has the slave open (cannot happen while we hold it)
@@ -115,38 +125,54 @@ class TcpTransport:
         self._on_disconnect = on_disconnect
 
     def read_fds(self) -> list[int]:
-        fds = [self.server.fileno()]
-        if self.client is not None:
-            fds.append(self.client.fileno())
+        fds = []
+        if self.client is not None and len(self._out) < MAX_PENDING_OUT:  # else: back-pressure
+            fds.append(self.client.fileno())  # before the server: an end of file before a new client
+        fds.append(self.server.fileno())
         return fds
 
     def write_fds(self) -> list[int]:
         return [self.client.fileno()] if self.client is not None and self._out else []
 
     def on_readable(self, fd: int) -> bytes | None:
-        if fd == self.server.fileno():
-            try:
-                conn, _ = self.server.accept()
-            except (BlockingIOError, InterruptedError):
+        if fd != self.server.fileno():
+            data = self._recv()
+            return data or None
+        if self.client is not None:
+            # Serve what the present client still has (its last bytes, its end of file) before looking
+            # at the new connection: it may be the next client, come just as this one closed.
+            data = self._recv()
+            if data:
+                return data  # the new connection waits in the backlog until the next round
+            if self.client is not None:  # alive with nothing to say: one client at a time
+                with contextlib.suppress(BlockingIOError, InterruptedError, OSError):
+                    self.server.accept()[0].close()
                 return None
-            if self.client is not None:  # one client at a time
-                conn.close()
-                return None
-            conn.setblocking(False)
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            self.client = conn
-            return None
-        assert self.client is not None
         try:
-            data = self.client.recv(4096)
+            conn, _ = self.server.accept()
         except (BlockingIOError, InterruptedError):
             return None
+        conn.setblocking(False)
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.client = conn
+        return None
+
+    def _recv(self) -> bytes:
+        """What the client sent (b"" when nothing waits); its end of file or an error drops it. While
+        its answers are not being read, only an end of file is looked for (back-pressure)."""
+        if self.client is None:
+            return b""
+        paused = len(self._out) >= MAX_PENDING_OUT
+        try:
+            data = self.client.recv(1, socket.MSG_PEEK) if paused else self.client.recv(READ_SIZE)
+        except (BlockingIOError, InterruptedError):
+            return b""
         except OSError:
             data = b""
         if not data:
             self._drop_client()
-            return None
-        return data
+            return b""
+        return b"" if paused else data
 
     def _drop_client(self) -> None:
         if self.client is not None:
@@ -196,6 +222,7 @@ class SimServer:
         self._closed = False
         self._changes = model.table_changes
         self.error: BaseException | None = None
+        self.failed = threading.Event()  # set when the loop died of ``error``
 
     def wake(self) -> None:
         if self._closed:
@@ -213,6 +240,7 @@ class SimServer:
                 self._step()
         except BaseException as exc:  # reported by the owner (RunningSim / the CLI)
             self.error = exc
+            self.failed.set()
         finally:
             self._closed = True
             self.transport.close()
@@ -223,17 +251,20 @@ class SimServer:
     def _step(self) -> None:
         with self.lock:
             due = self.model.outbox.next_due
-        timeout = None if due is None else max(0.0, due - time.monotonic())
-        rfds = [*self.transport.read_fds(), self._wake_r]
-        readable, writable, _ = select.select(rfds, self.transport.write_fds(), [], timeout)
+        timeout = MAX_SLEEP_S if due is None else min(MAX_SLEEP_S, max(0.0, due - time.monotonic()))
+        with self.lock:
+            rfds = [*self.transport.read_fds(), self._wake_r]
+            wfds = self.transport.write_fds()
+        readable, writable, _ = select.select(rfds, wfds, [], timeout)
         for fd in writable:
-            self.transport.on_writable(fd)
-        for fd in readable:
+            with self.lock:  # a TCP disconnect resets the model's line
+                self.transport.on_writable(fd)
+        for fd in readable:  # in read_fds order: a client's end of file before a new connection
             if fd == self._wake_r:
                 with contextlib.suppress(OSError):
                     os.read(self._wake_r, 512)
                 continue
-            with self.lock:  # a TCP disconnect resets the model's line
+            with self.lock:
                 data = self.transport.on_readable(fd)
             if data:
                 self._received(data)
@@ -252,10 +283,10 @@ class SimServer:
     def _send_due(self) -> None:
         with self.lock:
             out = self.model.outbox.pop(time.monotonic())
-        if out:
-            self.transport.send(out)
-            if self.on_traffic is not None:
-                self.on_traffic("device", out)
+            if out:
+                self.transport.send(out)
+        if out and self.on_traffic is not None:
+            self.on_traffic("device", out)
 
 
 class RunningSim:
@@ -272,6 +303,7 @@ class RunningSim:
         self.host: str | None = getattr(transport, "host", None)
         self.port: int | None = getattr(transport, "port", None)
         self.url = self.path if self.path is not None else f"socket://{self.host}:{self.port}"
+        self.failed = server.failed  # set when the loop died; ``server.error`` says of what
         self._thread = threading.Thread(target=server.run, name="xac1-sim", daemon=True)
         self._thread.start()
 

@@ -1,0 +1,99 @@
+"""The one signal policy (``xac1_proto.signals``), in this process with real signals: SIGINT, SIGTERM
+and SIGHUP end a run the same way; a signal before the run began aborts it quietly; later signals and
+signals during the ending are ignored and said so; the previous handlers come back."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from pathlib import Path
+
+import pytest
+
+from xac1_proto.signals import EXIT_EARLY, SIGNALS, Interrupted, OrderlyEnd, signal_name
+
+ALL = pytest.mark.parametrize("sig", SIGNALS, ids=signal_name)
+
+
+def messages(path: Path) -> list[str]:
+    return path.read_text().splitlines()
+
+
+@ALL
+def test_signal_before_begin_aborts_quietly(tmp_path: Path, sig: int) -> None:
+    """Before ``begin()`` a signal raises ``Interrupted`` (the command then ends with EXIT_EARLY) and
+    prints nothing."""
+    with open(tmp_path / "err", "w") as err, OrderlyEnd("xac1 test", "ending", err=err) as end:
+        with pytest.raises(Interrupted) as caught:
+            signal.raise_signal(sig)
+        assert caught.value.signum == sig and caught.value.name == signal_name(sig)
+        assert end.early and end.stop.is_set() and end.signum == sig
+    assert messages(tmp_path / "err") == []
+    assert EXIT_EARLY == 2
+
+
+@ALL
+def test_first_signal_after_begin_sets_stop_and_says_so(tmp_path: Path, sig: int) -> None:
+    """After ``begin()`` the first signal sets ``stop`` (no exception: a loop polls it) and says what
+    the ending does."""
+    with open(tmp_path / "err", "w") as err, \
+            OrderlyEnd("xac1 test", "stopping: the summary follows", err=err) as end:
+        end.begin()
+        signal.raise_signal(sig)
+        assert end.stop.is_set() and not end.early and end.signal_name == signal_name(sig)
+    assert messages(tmp_path / "err") == [f"xac1 test: {signal_name(sig)}: stopping: the summary follows"]
+
+
+def test_interrupt_mode_raises_once_then_ignores(tmp_path: Path) -> None:
+    """With ``interrupt=True`` the first signal also raises ``Interrupted`` (code that blocks); a second
+    one (a double Ctrl-C) is ignored and said so, without raising into the ending."""
+    with open(tmp_path / "err", "w") as err, \
+            OrderlyEnd("xac1 test", "restoring the device", interrupt=True, err=err) as end:
+        end.begin()
+        with pytest.raises(Interrupted):
+            signal.raise_signal(signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)  # no exception
+        signal.raise_signal(signal.SIGTERM)
+        assert end.signum == signal.SIGINT
+    assert messages(tmp_path / "err") == ["xac1 test: SIGINT: restoring the device",
+                                          "xac1 test: SIGINT ignored: restoring the device",
+                                          "xac1 test: SIGTERM ignored: restoring the device"]
+
+
+@ALL
+def test_signal_during_the_ending_is_ignored(tmp_path: Path, sig: int) -> None:
+    """Once ``ending()`` was called (the run ended on its own: a port went away), every signal is
+    ignored and said so; ``stop`` stays as it was."""
+    with open(tmp_path / "err", "w") as err, \
+            OrderlyEnd("xac1 test", "writing the state file", interrupt=True, err=err) as end:
+        end.begin()
+        end.ending()
+        signal.raise_signal(sig)
+        assert not end.stop.is_set() and end.signum is None
+    assert messages(tmp_path / "err") == [f"xac1 test: {signal_name(sig)} ignored: writing the state file"]
+
+
+def test_previous_handlers_come_back() -> None:
+    """Leaving the block puts the handlers back as they were."""
+    before = {sig: signal.getsignal(sig) for sig in SIGNALS}
+    with OrderlyEnd("xac1 test", "ending"):
+        assert all(signal.getsignal(sig) != before[sig] for sig in SIGNALS)
+    assert {sig: signal.getsignal(sig) for sig in SIGNALS} == before
+
+
+def test_inert_outside_the_main_thread() -> None:
+    """Handlers can only be installed from the main thread: elsewhere the policy is inert, not an
+    error, and ``stop`` is still an event its owner can set."""
+    result: list[object] = []
+
+    def body() -> None:
+        with OrderlyEnd("xac1 test", "ending") as end:
+            end.begin()
+            end.stop.set()
+            result.append(end.stop.is_set())
+
+    before = signal.getsignal(signal.SIGTERM)
+    thread = threading.Thread(target=body)
+    thread.start()
+    thread.join(5)
+    assert result == [True] and signal.getsignal(signal.SIGTERM) == before

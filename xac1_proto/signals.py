@@ -1,0 +1,174 @@
+"""One signal policy for every long-running command (sniff, proxy, sim, conformance).
+
+How it works: SIGINT (Ctrl-C), SIGTERM (``kill``, ``timeout(1)``, a service stop) and SIGHUP (the
+terminal or SSH session closed) all mean the same thing: end in order. ``OrderlyEnd`` is a context
+manager that installs one handler for the three and restores the previous handlers on exit:
+
+- a signal *before* ``begin()`` (start-up: imports, opening ports, nothing sent yet) raises
+  ``Interrupted``; the command ends quietly with ``EXIT_EARLY`` (2), no traceback;
+- the *first* signal after ``begin()`` sets ``stop`` (a loop polls it between two reads) and, with
+  ``interrupt=True`` (code that blocks, like a pytest run), also raises ``Interrupted`` in the main
+  thread; one line on stderr says what now happens (``what``: "flushing the recording ...");
+- every *later* signal, and any signal once ``ending()`` was called, is ignored and said so: the
+  ending (restore, summary, state file) is never cut short.
+
+Do the ending inside the ``with`` block: outside it the previous handlers are back. Handlers can only be
+installed from the main thread; elsewhere (a test calling a command's ``run`` from a thread) the policy
+is inert and ``stop`` is only set by whoever owns it. ``startup()`` is for the ``xac1`` dispatcher:
+until a command installs its ``OrderlyEnd``, any of the three signals raises ``Interrupted``; ``exiting()``
+(the dispatcher, once the command returned) ignores them while the process exits.
+
+Typical use::
+
+    with OrderlyEnd("xac1 sniff", "stopping: the summary follows") as end:
+        try:
+            taps = open_taps()            # a signal here: Interrupted
+        except Interrupted:
+            return EXIT_EARLY
+        end.begin()
+        loop(stop=end.stop)               # a signal here: end.stop is set, the loop returns
+        end.ending()                      # from here on signals are ignored (and said so)
+        print_summary()
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+from types import FrameType, TracebackType
+from typing import TYPE_CHECKING, Any, Final, TextIO
+
+if TYPE_CHECKING:
+    import threading
+
+SIGNALS: Final = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+EXIT_EARLY: Final = 2  # a signal before the run began: nothing was done
+
+
+def signal_name(signum: int) -> str:
+    """``SIGTERM`` for 15 (the number itself for an unknown signal)."""
+    try:
+        return signal.Signals(signum).name
+    except ValueError:
+        return f"signal {signum}"
+
+
+class Interrupted(KeyboardInterrupt):
+    """A signal ended what the main thread was doing; ``signum`` says which."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal_name(signum))
+        self.signum = signum
+
+    @property
+    def name(self) -> str:
+        return signal_name(self.signum)
+
+
+def _say(err: TextIO | None, text: str) -> None:
+    """One line to ``err`` from a signal handler: straight to the file descriptor when there is one
+    (a buffered stream may be in the middle of a write the handler interrupted)."""
+    stream = sys.stderr if err is None else err
+    line = text + "\n"
+    try:
+        fd = stream.fileno()
+    except (AttributeError, OSError, ValueError):
+        with contextlib.suppress(OSError, ValueError, RuntimeError):
+            stream.write(line)
+            stream.flush()
+        return
+    with contextlib.suppress(OSError, ValueError, RuntimeError):
+        stream.flush()
+    with contextlib.suppress(OSError):
+        os.write(fd, line.encode("utf-8", "replace"))
+
+
+def _install(handler: Any) -> dict[int, Any]:
+    """Set ``handler`` for the three signals; the handlers it replaced ({} outside the main thread,
+    where Python cannot set handlers). ``threading`` is not imported for this: ``xac1 parse`` loads
+    no thread module."""
+    previous: dict[int, Any] = {}
+    try:
+        for sig in SIGNALS:
+            previous[sig] = signal.signal(sig, handler)
+    except ValueError:  # not the main thread: nothing was set
+        return {}
+    return previous
+
+
+def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
+    raise Interrupted(signum)
+
+
+def startup() -> None:
+    """Until a command installs its own ``OrderlyEnd``: SIGINT, SIGTERM and SIGHUP raise ``Interrupted``
+    (the dispatcher turns it into a quiet ``EXIT_EARLY``). No-op outside the main thread."""
+    _install(_raise_interrupted)
+
+
+def exiting() -> None:
+    """The process is about to exit (its command has ended): further signals are ignored, so a late
+    second Ctrl-C cannot turn a finished run's exit status into another. For the process's entry point
+    only. No-op outside the main thread."""
+    _install(signal.SIG_IGN)
+
+
+class OrderlyEnd:
+    """The signal policy of one run; see the module docstring.
+
+    ``program`` starts every message (``xac1 sniff``); ``what`` says what the ending does. ``stop`` is set
+    by the first signal; ``signum`` is that signal (None when none came); ``early`` is True when it came
+    before ``begin()``."""
+
+    def __init__(self, program: str, what: str, *, interrupt: bool = False,
+                 err: TextIO | None = None) -> None:
+        self.program = program
+        self.what = what
+        self.interrupt = interrupt
+        self.err = err
+        import threading  # here, not at the top: the dispatcher imports this module for every command
+
+        self.stop: threading.Event = threading.Event()
+        self.signum: int | None = None
+        self.early = False
+        self._begun = False
+        self._ending = False
+        self._previous: dict[int, Any] = {}
+
+    @property
+    def signal_name(self) -> str | None:
+        return None if self.signum is None else signal_name(self.signum)
+
+    def begin(self) -> None:
+        """The run has begun: from now on the first signal ends it in order instead of aborting it."""
+        self._begun = True
+
+    def ending(self) -> None:
+        """The ending is under way: from now on every signal is ignored, and said so."""
+        self._ending = True
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        name = signal_name(signum)
+        if self.signum is not None or self._ending:
+            _say(self.err, f"{self.program}: {name} ignored: {self.what}")
+            return
+        self.signum = signum
+        self.stop.set()
+        if not self._begun:
+            self.early = True
+            raise Interrupted(signum)
+        _say(self.err, f"{self.program}: {name}: {self.what}")
+        if self.interrupt:
+            raise Interrupted(signum)
+
+    def __enter__(self) -> OrderlyEnd:
+        self._previous = _install(self._handle)
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        self._previous.clear()
