@@ -78,6 +78,13 @@ def run(args: argparse.Namespace) -> int:
             return _error(f"{f}: no such file")
         if path.is_dir():
             return _error(f"{f}: is a directory; give the capture file(s) in it")
+    if args.report and all(Path(f).stat().st_size == 0 for f in args.files):  # nothing to detect
+        from .report import ReportError, write_empty
+        try:
+            print(f"xac1 decode: report written to {write_empty(args.report, [(f, 'empty') for f in args.files])}",
+                  file=sys.stderr)
+        except ReportError as exc:
+            return _error(str(exc))
     try:
         fmt = args.input_format
         if fmt == "auto":

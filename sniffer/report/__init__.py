@@ -87,5 +87,11 @@ class SessionReport:
         return self.path
 
 
+def write_empty(path: str | os.PathLike[str], sources: list[tuple[str, str]]) -> Path:
+    """A report for a capture that holds nothing at all (a file of zero bytes): it says so."""
+    report = SessionReport.open(path, sources)
+    return report.write()
+
+
 __all__ = ["EXTRA_HINT", "Limits", "ReportError", "SessionAggregator", "SessionReport", "check_writable",
-           "require_plotly"]
+           "require_plotly", "write_empty"]

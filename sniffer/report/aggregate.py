@@ -34,10 +34,10 @@ from ..view import show_raw
 class Limits:
     """How much the report keeps in full; beyond this it aggregates."""
 
-    records: int = 4000  # records kept whole for the timeline
-    violation_records: int = 2000  # further records with a violation kept whole
+    records: int = 3000  # records kept whole for the timeline
+    violation_records: int = 1500  # further records with a violation kept whole
     bins: int = 2000  # time bins before their width doubles
-    points: int = 20000  # latency points and axis points before thinning
+    points: int = 5000  # latency points and axis points before thinning
     alarms: int = 500  # alarm history rows
     waiting: int = 4096  # commands remembered while they wait for their answer
 
@@ -87,7 +87,7 @@ class TimeBins:
         stats[0] += 1
         stats[1] += value
         stats[2] = max(stats[2], value)
-        if len(self.bins) > self.limit:
+        while len(self.bins) > self.limit:
             self._coarsen()
 
     def _coarsen(self) -> None:
