@@ -81,8 +81,8 @@ def run(args: argparse.Namespace) -> int:
     if args.report and all(Path(f).stat().st_size == 0 for f in args.files):  # nothing to detect
         from .report import ReportError, write_empty
         try:
-            print(f"xac1 decode: report written to {write_empty(args.report, [(f, 'empty') for f in args.files])}",
-                  file=sys.stderr)
+            written = write_empty(args.report, [(f, "empty") for f in args.files])
+            print(f"xac1 decode: report written to {written}", file=sys.stderr)
         except ReportError as exc:
             return _error(str(exc))
     try:

@@ -11,6 +11,7 @@ every console message, uncaught exception, log entry and network request since t
 from __future__ import annotations
 
 import base64
+import contextlib
 import fcntl
 import itertools
 import json
@@ -105,10 +106,8 @@ class Browser:
         return Page(self, session, target, since, path.resolve().as_uri())
 
     def close(self) -> None:
-        try:
+        with contextlib.suppress(RuntimeError, TimeoutError, OSError):
             self.send("Browser.close")
-        except (RuntimeError, TimeoutError, OSError):
-            pass
         try:
             self.proc.wait(10)
         except subprocess.TimeoutExpired:

@@ -246,9 +246,9 @@ def write_recording(path: Path, frames_wanted: int) -> None:
                 command, answer = b"0RC\r\n", b"0RC00002%06X\r\n" % (k % 0x10000)
             else:
                 command, answer = b"0RV\r\n", b"0RV100\r\n"
-            f.write('{"type":"chunk","t":%.6f,"dir":"host","data":"%s"}\n' % (t, command.hex()))
-            f.write('{"type":"chunk","t":%.6f,"dir":"device","data":"%s"}\n'
-                    % (t + 0.012 + (k % 7) * 0.001, answer.hex()))
+            answered = t + 0.012 + (k % 7) * 0.001
+            f.write(f'{{"type":"chunk","t":{t:.6f},"dir":"host","data":"{command.hex()}"}}\n')
+            f.write(f'{{"type":"chunk","t":{answered:.6f},"dir":"device","data":"{answer.hex()}"}}\n')
             t += 0.05
 
 
