@@ -192,6 +192,7 @@ class SessionAggregator:
         self.sides: Counter[tuple[str, str]] = Counter()  # (code, side) -> records
         self.exchanges: list[dict[str, Any]] = []  # command -> answer, both ends kept
         self.exchange_count = 0
+        self.unanswered: list[dict[str, Any]] = []  # command -> its no-answer deadline, both kept
         self.bins = TimeBins(self.limits.bins)
         self.latency_hist: dict[str, LogHistogram] = {}
         self.latency_points = Thinned(self.limits.points)  # (x, ms, header, kept)
@@ -229,7 +230,9 @@ class SessionAggregator:
             if kept is not None:
                 self.marks.append({"x": x, "side": side, "code": code, "record": kept})
         if isinstance(record, TimeoutRecord):
-            self._waiting.pop(record.command, None)
+            command = self._waiting.pop(record.command, None)
+            if command is not None and command.kept is not None and kept is not None:
+                self.unanswered.append({"from": command.x, "to": x, "header": command.header})
             return
         self.bins.add(x, f"{record.dir}:{record.type}")
         if isinstance(record, FrameRecord):

@@ -77,6 +77,15 @@ def timeline(agg: SessionAggregator) -> go.Figure:
     traces.append(go.Scatter(x=[None if v is None else v * scale for v in ex_x], y=ex_y, mode="lines",
                              name=f"exchange ({len(agg.exchanges)})", hoverinfo="skip",
                              line={"color": "#999", "width": 1}, meta="exchanges"))
+    un_x: list[float | None] = []
+    un_y: list[float | None] = []
+    for un in agg.unanswered:
+        un_x += [un["from"] * scale, un["to"] * scale, None]
+        un_y += [LANE["host"], LANE["device"], None]
+    if un_x:
+        traces.append(go.Scatter(x=un_x, y=un_y, mode="lines", name=f"unanswered ({len(agg.unanswered)})",
+                                 hoverinfo="skip", line={"color": "#d62728", "width": 1, "dash": "dot"},
+                                 meta="unanswered"))
     for direction in ("host", "device"):
         for kind, symbol in (("frame", "circle"), ("junk", "x")):
             rows = [(i, r) for i, r in enumerate(agg.records) if r["dir"] == direction and r["type"] == kind]
