@@ -287,3 +287,44 @@ def test_timeout_records_are_marked_on_the_device_side():
     [mark] = agg.marks
     assert (mark["code"], mark["side"], mark["x"]) == ("no-answer", "device", timeout.t)
     assert agg.exchange_count == 1
+
+
+def test_proxy_report_written_on_sigterm(tmp_path):
+    """``xac1 proxy --report``: the report is written when the run ends (here on SIGTERM) and holds the
+    exchanges and violations the proxy printed (docs/protocol.md "Violation codes")."""
+    import signal
+
+    from test_sniffer_cli import Cli, no_traceback
+
+    from xac1_proto.client import Client
+    from xac1_proto.sim import SimConfig, serve_pty
+
+    out = tmp_path / "proxy.html"
+    with serve_pty(SimConfig(time_scale=0)) as sim, \
+            Cli("proxy", "--device", sim.path, "--tcp", "127.0.0.1:0", "--format", "jsonl",
+                "--report", str(out)) as cli:
+        port = int(cli.wait_err(r"tcp 127\.0\.0\.1:(\d+)").group(1))
+        with Client(f"socket://127.0.0.1:{port}") as client:
+            client.read_version()
+            client.transact(b"ORV\r\n")  # letter O for zero: alarm 01
+            client.transact(b"0RV\r\n")  # without a reset: alarm-ignored; the latched alarm answers
+            cli.records(6)
+        assert cli.finish(signal.SIGTERM) == 0
+        no_traceback(cli)
+    records = [r for r in cli.all_records() if r["type"] != "summary"]
+    data = embedded(out.read_text(encoding="utf-8"), "session-data")
+    assert [r["violations"] for r in data["records"]] == [r["violations"] for r in records]
+    assert data["counts"]["exchanges"] == 3
+    assert {"letter-o", "alarm-ignored"} <= {c for r in records for c in r["violations"]}
+
+
+def test_turnaround_histogram_fragment_for_other_reports():
+    """``plots.turnaround_histogram``: an HTML fragment (no plotly.js in it: the page inlines it once)
+    with one histogram per command and the deadline line, for the conformance report to embed."""
+    from sniffer.report import plots
+
+    fragment = plots.turnaround_histogram({"0RV": [2.0, 2.5, 3.0], "0RP": [4.0]}, title="Turnaround <x>")
+    assert fragment.startswith("<div") and "Plotly.newPlot" in fragment
+    assert "plotly.min.js" not in fragment and len(fragment) < 20_000
+    assert '"name":"0RV"' in fragment and '"x":[2.0,2.5,3.0]' in fragment and "deadline 1000 ms" in fragment
+    assert "Turnaround &lt;x&gt;" in fragment
