@@ -328,3 +328,13 @@ def test_turnaround_histogram_fragment_for_other_reports():
     assert "plotly.min.js" not in fragment and len(fragment) < 20_000
     assert '"name":"0RV"' in fragment and '"x":[2.0,2.5,3.0]' in fragment and "deadline 1000 ms" in fragment
     assert "Turnaround &lt;x&gt;" in fragment
+
+
+def test_group_summary_fragment_for_other_reports():
+    """``plots.group_summary``: one stacked bar per group of its outcome counts, as a fragment."""
+    from sniffer.report import plots
+
+    fragment = plots.group_summary({"framing": {"passed": 9, "failed": 1}, "alarms": {"skipped": 2}})
+    assert "Plotly.newPlot" in fragment and "plotly.min.js" not in fragment
+    assert '"name":"passed"' in fragment and '"x":[9,0]' in fragment and '"x":[1,0]' in fragment
+    assert '"x":[0,2]' in fragment and '"y":["framing","alarms"]' in fragment

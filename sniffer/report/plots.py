@@ -135,7 +135,8 @@ def activity(agg: SessionAggregator) -> go.Figure:
             traces.append(go.Bar(x=_xs(agg, xs), y=counts, name=what, marker={"color": code_colour(what)},
                                  yaxis="y2", meta="violation"))
         else:
-            traces.append(go.Scatter(x=_xs(agg, xs), y=counts, name=f"{kind} {what}s", mode="lines",
+            label = "junk runs" if what == "junk" else "frames"
+            traces.append(go.Scatter(x=_xs(agg, xs), y=counts, name=f"{kind} {label}", mode="lines",
                                      line={"color": LANE_COLOUR.get(kind, "#777"), "shape": "hv"}))
     unit = f"{bins.width:g} s" if agg.timed else f"{bins.width:g} records"
     layout = _layout(agg, f"Activity over the whole capture (per {unit})", 380, barmode="stack",
@@ -245,6 +246,24 @@ def turnaround_histogram(latencies_ms: dict[str, list[float]], title: str = "Ans
     if deadline_ms is not None:
         fig.add_vline(x=deadline_ms, line={"color": "#b00020", "dash": "dash"},
                       annotation_text=f"deadline {deadline_ms:g} ms")
+    return str(pio.to_html(fig, full_html=False, include_plotlyjs=False, config=CONFIG))
+
+
+OUTCOME_COLOUR = {"passed": "#2ca02c", "failed": "#d62728", "skipped": "#bcbd22", "error": "#7f0000"}
+
+
+def group_summary(groups: dict[str, dict[str, int]], title: str = "Checks per group") -> str:
+    """An HTML fragment (as ``turnaround_histogram``): one stacked bar per group (e.g. conformance
+    topic) of its outcome counts (``{"framing": {"passed": 9, "failed": 1}}``)."""
+    outcomes = sorted({o for counts in groups.values() for o in counts},
+                      key=lambda o: list(OUTCOME_COLOUR).index(o) if o in OUTCOME_COLOUR else 99)
+    names = list(groups)
+    traces = [go.Bar(y=names, x=[groups[g].get(o, 0) for g in names], name=o, orientation="h",
+                     marker={"color": OUTCOME_COLOUR.get(o, "#777")}) for o in outcomes]
+    fig = go.Figure(data=traces, layout={"title": {"text": html.escape(title)}, "barmode": "stack",
+                                         "height": 120 + 28 * len(names),
+                                         "xaxis": {"title": {"text": "checks"}},
+                                         "yaxis": {"autorange": "reversed"}, "margin": {"l": 160}})
     return str(pio.to_html(fig, full_html=False, include_plotlyjs=False, config=CONFIG))
 
 
