@@ -140,8 +140,9 @@ def activity(agg: SessionAggregator) -> go.Figure:
                                      line={"color": LANE_COLOUR.get(kind, "#777"), "shape": "hv"}))
     unit = f"{bins.width:g} s" if agg.timed else f"{bins.width:g} records"
     layout = _layout(agg, f"Activity over the whole capture (per {unit})", 380, barmode="stack",
-                     yaxis={"title": {"text": "frames per bin"}, "domain": [0.45, 1]},
-                     yaxis2={"title": {"text": "violations"}, "domain": [0, 0.38]})
+                     yaxis={"title": {"text": "frames per bin"}, "rangemode": "tozero"},
+                     yaxis2={"title": {"text": "violations per bin (bars)"}, "overlaying": "y",
+                             "side": "right", "rangemode": "tozero", "showgrid": False})
     return go.Figure(data=traces, layout=layout)
 
 
@@ -221,7 +222,10 @@ def position(agg: SessionAggregator) -> go.Figure:
     traces.append(go.Scatter(x=_xs(agg, homing), y=[0] * len(homing), mode="markers", name="homing",
                              marker={"symbol": "triangle-up", "size": 12, "color": "#2ca02c"}))
     alarms = agg.alarm_marks.items
-    traces.append(go.Scatter(x=_xs(agg, [a[0] for a in alarms]), y=[top] * len(alarms), mode="markers+text",
+    labelled = len(alarms) <= 50  # codes as text only while they stay readable (hover shows them)
+    traces.append(go.Scatter(x=_xs(agg, [a[0] for a in alarms]), y=[top] * len(alarms),
+                             mode="markers+text" if labelled else "markers",
+                             hovertext=[f"alarm {a[1]:02X}" for a in alarms],
                              name="alarm answer", text=[f"{a[1]:02X}" for a in alarms],
                              textposition="top center", customdata=[a[2] for a in alarms],
                              marker={"symbol": "x", "size": 11, "color": "#d62728"}))
