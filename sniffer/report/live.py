@@ -28,5 +28,9 @@ class ReportingSession(Session):
             super().close(now, summary)
         finally:
             if summary:  # the run started: there is a session to show
-                path = self.report.write(self.analyzer.summary())
-                print(f"report written to {path}", file=sys.stderr)
+                try:
+                    path = self.report.write(self.analyzer.summary())
+                    print(f"report written to {path}", file=sys.stderr)
+                except OSError as exc:
+                    print(f"error: cannot write the report {self.report.path}: {exc.strerror or exc}",
+                          file=sys.stderr)
