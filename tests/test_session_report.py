@@ -41,7 +41,7 @@ def embedded(page: str, element: str) -> dict:
     """The JSON the page embeds in ``<script type="application/json" id=element>``."""
     match = re.search(rf'<script type="application/json" id="{element}">(.*?)</script>', page, re.S)
     assert match, f"no {element} in the page"
-    return json.loads(match.group(1).replace("<\\/", "</"))
+    return json.loads(match.group(1))
 
 
 def run(*args: str, cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess[str]:

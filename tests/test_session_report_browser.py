@@ -184,3 +184,26 @@ def test_live_sniffer_session_report_in_chromium(browser, tmp_path):
         check_screenshot(page, tmp_path / "live.png")
     finally:
         page.close()
+
+
+def test_hostile_bytes_stay_data(browser, tmp_path):
+    """Bytes on the line that look like HTML (``</script><script>...``) are shown as the bytes they are:
+    the page's embedded JSON cannot be closed by them, no script of theirs runs, the detail shows them."""
+    capture, out = tmp_path / "hostile.jsonl", tmp_path / "hostile.html"
+    hostile = b"</script><script>window.pwned=1</script><!--\r\n"
+    rows = [{"type": "recording", "version": 1, "started": 1714557600.0, "source": "t"},
+            {"type": "chunk", "t": 1714557600.0, "dir": "host", "data": hostile.hex()},
+            {"type": "chunk", "t": 1714557600.1, "dir": "host", "data": b"0RV\r\n".hex()},
+            {"type": "chunk", "t": 1714557600.12, "dir": "device", "data": b"0RV100\r\n".hex()}]
+    capture.write_text("".join(json.dumps(row) + "\n" for row in rows), encoding="ascii")
+    lines = decode_with_report(capture, out)
+    page = browser.open(out)
+    try:
+        check_page(page, lines)
+        assert page.evaluate("window.pwned === undefined")
+        page.evaluate("window.xac1Session.show(0)")
+        shown = page.evaluate("document.getElementById('detail').textContent")
+        assert "bytes:  </script><script>window.pwned=1</script><!--\\r\\n" in shown
+        assert "garbage (error): bytes that form no frame" in shown
+    finally:
+        page.close()
