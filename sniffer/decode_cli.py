@@ -60,6 +60,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"(default {spec.STORM_LIMIT})")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text view (default: when the output is a terminal)")
+    p.add_argument("--report", metavar="FILE", default=None,
+                   help="also write an HTML session report to FILE (needs the 'report' extra)")
 
 
 def _error(message: str) -> int:
@@ -79,6 +81,13 @@ def run(args: argparse.Namespace) -> int:
             return _error(f"{f}: no such file")
         if path.is_dir():
             return _error(f"{f}: is a directory; give the capture file(s) in it")
+    if args.report and all(Path(f).stat().st_size == 0 for f in args.files):  # nothing to detect
+        from .report import ReportError, write_empty
+        try:
+            written = write_empty(args.report, [(f, "empty") for f in args.files])
+            print(f"xac1 decode: report written to {written}", file=sys.stderr)
+        except ReportError as exc:
+            return _error(str(exc))
     try:
         fmt = args.input_format
         if fmt == "auto":
@@ -115,6 +124,14 @@ def _decode(capture: Capture, args: argparse.Namespace) -> int:
     if args.storm_limit is not None:
         options["storm_limit"] = args.storm_limit
     analyzer = Analyzer(**options)
+    html_report = None
+    if args.report:
+        from .report import ReportError, SessionReport
+        try:
+            html_report = SessionReport.open(args.report, [(f, capture.format) for f in args.files],
+                                        analyzer.no_answer_timeout)
+        except ReportError as exc:
+            return _error(str(exc))
     color = args.color
     view = make_view("text" if args.format == "summary" else args.format, sys.stdout, color)
     show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
@@ -125,15 +142,21 @@ def _decode(capture: Capture, args: argparse.Namespace) -> int:
             violations += bool(record.violations)
             if show is not None and show(record):
                 view.write(record)
+            if html_report is not None:
+                html_report.add(record)
         if progress is not None:
             progress.update()
     for record in analyzer.close():
         violations += bool(record.violations)
         if show is not None and show(record):
             view.write(record)
+        if html_report is not None:
+            html_report.add(record)
     if progress is not None:
         progress.done()
     view.summary(analyzer.summary())
+    if html_report is not None:
+        print(f"xac1 decode: report written to {html_report.write(analyzer.summary())}", file=sys.stderr)
     report = capture.report
     empty = not (analyzer.bytes_in("host") or analyzer.bytes_in("device"))
     for note in report.notes:

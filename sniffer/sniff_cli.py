@@ -23,6 +23,9 @@ def add_common_output(parser: argparse.ArgumentParser) -> None:
                              f"comm-error-storm (default {spec.STORM_LIMIT})")
     parser.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                         help="colour in the text view (default: when the output is a terminal)")
+    parser.add_argument("--report", metavar="FILE",
+                        help="write an HTML session report to FILE when the run ends (needs the "
+                             "'report' extra)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,8 +61,15 @@ def make_session(args: argparse.Namespace, source: str):  # -> live.Session (imp
         raise ValueError(f"--timeout must be a positive number of seconds, got {args.timeout}")
     if args.storm_limit < 1:
         raise ValueError(f"--storm-limit must be at least 1, got {args.storm_limit}")
+    report = None
+    if args.report:
+        from .report import SessionReport
+        report = SessionReport.open(args.report, [(source, "live")], args.timeout)  # ReportError: ValueError
     recorder = open_recording(args.record, source) if args.record else None
     analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit)
+    if report is not None:
+        from .report.live import ReportingSession
+        return ReportingSession(analyzer, make_view(args.format, sys.stdout, args.color), recorder, report)
     return Session(analyzer, make_view(args.format, sys.stdout, args.color), recorder)
 
 

@@ -1,0 +1,278 @@
+"""Plotly figures of a session: timeline, activity, answer latency, axis position; and a fragment for
+other reports (``turnaround_histogram``).
+
+How this works. Each function takes the bounded aggregates of ``SessionAggregator`` and returns a
+``plotly.graph_objects.Figure`` (validated by plotly as it is built). The page embeds the figures as
+JSON and draws them with the one inlined copy of plotly.js; points carry in ``customdata`` the index of
+the record they stand for, which the page shows when a point is clicked. Times are unix seconds,
+drawn on a date axis (UTC); captures without time are drawn against the record number. Importing this
+module imports plotly: only the report needs it (the ``report`` extra).
+"""
+
+from __future__ import annotations
+
+import html
+from typing import Any
+
+import plotly.graph_objects as go
+import plotly.io as pio
+
+from xac1_proto import spec
+
+from .aggregate import LogHistogram, SessionAggregator
+
+LANE = {"host": 1.0, "device": 0.0}
+MARK_STEP = 0.16  # vertical offset between the violation marks of one record
+LANE_COLOUR = {"host": "#1f77b4", "device": "#2ca02c"}
+# one colour per violation code, fixed so a code looks the same in every report
+_PALETTE = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf", "#7f0000",
+            "#ff1493", "#b8860b", "#4b0082", "#006400", "#dc143c", "#00008b", "#ff4500", "#2f4f4f",
+            "#8b008b", "#556b2f", "#c71585", "#1e90ff", "#a0522d", "#708090")
+CODE_COLOUR: dict[str, str] = {code: _PALETTE[i % len(_PALETTE)]
+                               for i, code in enumerate(spec.VIOLATION_TABLE)}
+NOTICE_COLOUR = "#d4a017"
+CONFIG: dict[str, Any] = {"responsive": True, "scrollZoom": True, "displaylogo": False}
+
+
+def code_colour(code: str) -> str:
+    vspec = spec.VIOLATION_TABLE.get(code)  # type: ignore[call-overload]
+    if vspec is not None and vspec.severity == spec.NOTICE:
+        return NOTICE_COLOUR
+    return CODE_COLOUR.get(code, "#d62728")
+
+
+def _xs(agg: SessionAggregator, xs: list[float]) -> list[float]:
+    """Axis values: milliseconds for the date axis, record numbers as they are."""
+    return [x * 1000.0 for x in xs] if agg.timed else xs
+
+
+def _x_axis(agg: SessionAggregator, title: str = "") -> dict[str, Any]:
+    if agg.timed:
+        axis: dict[str, Any] = {"type": "date", "title": {"text": title or "time (UTC)"}}
+        if agg.t_first is not None and agg.t_last is not None:  # every time plot spans the capture
+            pad = max(0.02 * (agg.t_last - agg.t_first), 0.05)
+            axis["range"] = [(agg.t_first - pad) * 1000.0, (agg.t_last + pad) * 1000.0]
+        return axis
+    return {"type": "linear", "title": {"text": title or "record number (the capture has no time)"}}
+
+
+def _layout(agg: SessionAggregator, title: str, height: int, **more: Any) -> dict[str, Any]:
+    layout: dict[str, Any] = {"title": {"text": title}, "height": height, "dragmode": "zoom",
+                              "margin": {"l": 70, "r": 20, "t": 50, "b": 50}, "hovermode": "closest",
+                              "xaxis": _x_axis(agg), "legend": {"orientation": "h", "y": -0.25}}
+    layout.update(more)
+    return layout
+
+
+def timeline(agg: SessionAggregator) -> go.Figure:
+    """Host and device lanes, each exchange a line from command to answer, violations as coloured
+    marks (on the lane of the side at fault) with their code; clicking a point shows its record."""
+    traces: list[go.Scatter] = []
+    ex_x: list[float | None] = []
+    ex_y: list[float | None] = []
+    for ex in agg.exchanges:
+        ex_x += [ex["from"], ex["to"], None]
+        ex_y += [LANE["host"], LANE["device"], None]
+    scale = 1000.0 if agg.timed else 1.0
+    traces.append(go.Scatter(x=[None if v is None else v * scale for v in ex_x], y=ex_y, mode="lines",
+                             name=f"exchange ({len(agg.exchanges)})", hoverinfo="skip",
+                             line={"color": "#999", "width": 1}, meta="exchanges"))
+    un_x: list[float | None] = []
+    un_y: list[float | None] = []
+    for un in agg.unanswered:
+        un_x += [un["from"] * scale, un["to"] * scale, None]
+        un_y += [LANE["host"], LANE["device"], None]
+    if un_x:
+        traces.append(go.Scatter(x=un_x, y=un_y, mode="lines", name=f"unanswered ({len(agg.unanswered)})",
+                                 hoverinfo="skip", line={"color": "#d62728", "width": 1, "dash": "dot"},
+                                 meta="unanswered"))
+    for direction in ("host", "device"):
+        for kind, symbol in (("frame", "circle"), ("junk", "x")):
+            rows = [(i, r) for i, r in enumerate(agg.records) if r["dir"] == direction and r["type"] == kind]
+            if not rows:
+                continue
+            traces.append(go.Scatter(
+                x=_xs(agg, [r["x"] for _, r in rows]), y=[LANE[direction]] * len(rows), mode="markers",
+                name=f"{direction} {kind}s ({len(rows)})", customdata=[i for i, _ in rows],
+                hovertext=[f"#{r['i']} {r.get('bytes', '')}" for _, r in rows], hoverinfo="text+x",
+                marker={"symbol": symbol, "size": 7, "color": LANE_COLOUR[direction]},
+                meta=f"{direction}-{kind}"))
+    stacked: dict[int, int] = {}
+    by_code: dict[str, list[dict[str, Any]]] = {}
+    for mark in agg.marks:
+        by_code.setdefault(mark["code"], []).append(mark)
+    for code in sorted(by_code, key=lambda c: list(spec.VIOLATION_TABLE).index(c)
+                       if c in spec.VIOLATION_TABLE else 99):
+        marks = by_code[code]
+        ys = []
+        for mark in marks:
+            k = stacked.get(mark["record"], 0)
+            stacked[mark["record"]] = k + 1
+            away = (k + 1) * MARK_STEP
+            ys.append(LANE[mark["side"]] + (away if mark["side"] == "host" else -away))
+        traces.append(go.Scatter(
+            x=_xs(agg, [m["x"] for m in marks]), y=ys, mode="markers+text", name=f"{code} ({len(marks)})",
+            text=[code] * len(marks), textposition="middle right",
+            textfont={"size": 10, "color": code_colour(code)},
+            customdata=[m["record"] for m in marks], hovertext=[f"{code} ({m['side']})" for m in marks],
+            hoverinfo="text+x", marker={"symbol": "diamond", "size": 11, "color": code_colour(code)},
+            meta="violation"))
+    layout = _layout(agg, "Timeline: host and device lanes (drag to zoom, double-click to reset; click a "
+                          "mark for its bytes)", 460,
+                     yaxis={"tickvals": [0, 1], "ticktext": ["device", "host"], "range": [-1.2, 2.2],
+                            "fixedrange": True, "zeroline": False})
+    return go.Figure(data=traces, layout=layout)
+
+
+def activity(agg: SessionAggregator) -> go.Figure:
+    """The whole capture per time bin: frames by side and violations by code."""
+    bins = agg.bins
+    traces = []
+    for key in bins.keys():  # noqa: SIM118 - TimeBins.keys(), not a dict
+        xs, counts, _, _ = bins.series(key)
+        kind, _, what = key.partition(":")
+        if kind == "violation":
+            traces.append(go.Bar(x=_xs(agg, xs), y=counts, name=what, marker={"color": code_colour(what)},
+                                 yaxis="y2", meta="violation"))
+        else:
+            label = "junk runs" if what == "junk" else "frames"
+            traces.append(go.Scatter(x=_xs(agg, xs), y=counts, name=f"{kind} {label}", mode="lines",
+                                     line={"color": LANE_COLOUR.get(kind, "#777"), "shape": "hv"}))
+    unit = f"{bins.width:g} s" if agg.timed else f"{bins.width:g} records"
+    layout = _layout(agg, f"Activity over the whole capture (per {unit})", 380, barmode="stack",
+                     yaxis={"title": {"text": "frames per bin"}, "rangemode": "tozero"},
+                     yaxis2={"title": {"text": "violations per bin (bars)"}, "overlaying": "y",
+                             "side": "right", "rangemode": "tozero", "showgrid": False})
+    return go.Figure(data=traces, layout=layout)
+
+
+def latency_histogram(agg: SessionAggregator) -> go.Figure:
+    """Answer latency per command (ms, log axis), with the no-answer deadline drawn."""
+    traces = []
+    for header in sorted(agg.latency_hist):
+        hist = agg.latency_hist[header]
+        xs: list[float] = []
+        ys: list[int] = []
+        for value, n in hist.items():  # a step outline per bucket: bars do not draw well on a log axis
+            right = value + LogHistogram.step(value)
+            xs += [value, value, right, right]
+            ys += [0, n, n, 0]
+        traces.append(go.Scatter(x=xs, y=ys, mode="lines", fill="tozeroy", name=f"{header} ({hist.n})",
+                                 opacity=0.75))
+    return _with_deadline(agg, go.Figure(data=traces, layout={
+        "title": {"text": "Answer latency per command"}, "height": 360, "hovermode": "closest",
+        "margin": {"l": 70, "r": 20, "t": 50, "b": 50},
+        "xaxis": {"type": "log", "title": {"text": "latency, ms (command's last byte to the answer)"}},
+        "yaxis": {"title": {"text": "answers"}}}), vertical=True)
+
+
+def latency_over_time(agg: SessionAggregator) -> go.Figure:
+    """Latency of each answer over time (or, for long captures, per-bin mean and max)."""
+    traces = []
+    points = agg.latency_points
+    if points.thinned:
+        for header in agg.latency_bins.keys():  # noqa: SIM118 - not a dict
+            xs, _, means, tops = agg.latency_bins.series(header)
+            traces.append(go.Scatter(x=_xs(agg, xs), y=means, mode="lines", name=f"{header} mean"))
+            traces.append(go.Scatter(x=_xs(agg, xs), y=tops, mode="markers", name=f"{header} max",
+                                     marker={"size": 4}))
+    else:
+        by_header: dict[str, list[tuple[float, float, int | None]]] = {}
+        for x, ms, header, kept in points.items:
+            by_header.setdefault(header, []).append((x, ms, kept))
+        for header in sorted(by_header):
+            rows = by_header[header]
+            traces.append(go.Scatter(x=_xs(agg, [r[0] for r in rows]), y=[r[1] for r in rows],
+                                     mode="markers", name=header, customdata=[r[2] for r in rows],
+                                     marker={"size": 6}))
+    layout = _layout(agg, "Answer latency over time", 360, yaxis={"type": "log", "title": {"text": "ms"}})
+    return _with_deadline(agg, go.Figure(data=traces, layout=layout), vertical=False)
+
+
+def _with_deadline(agg: SessionAggregator, fig: go.Figure, vertical: bool) -> go.Figure:
+    deadline = agg.no_answer_timeout * 1000.0
+    label = f"no-answer deadline {deadline:g} ms (moves: longer)"
+    if vertical:
+        fig.add_vline(x=deadline, line={"color": "#b00020", "dash": "dash"}, annotation_text=label)
+    else:
+        fig.add_hline(y=deadline, line={"color": "#b00020", "dash": "dash"}, annotation_text=label)
+    return fig
+
+
+def position(agg: SessionAggregator) -> go.Figure:
+    """Axis position from the answers, moves with their estimated duration, homing and alarms."""
+    traces: list[go.Scatter] = []
+    pts = agg.positions.items
+    traces.append(go.Scatter(x=_xs(agg, [p[0] for p in pts]), y=[p[1] for p in pts], mode="markers",
+                             name="position answered (0RC/0MP/0MV)", customdata=[p[3] for p in pts],
+                             hovertext=[f"{p[2]} Pos {p[1]:#08x} ({p[1]})" for p in pts], hoverinfo="text+x",
+                             marker={"size": 7, "color": "#1f77b4"}))
+    mx: list[float | None] = []
+    my: list[float | None] = []
+    for x_cmd, x_est, x_ans, start, end, _header in agg.moves.items:
+        if start is None:
+            continue
+        mx += [x_cmd, x_est, x_ans, None]
+        my += [start, end, end, None]
+    traces.append(go.Scatter(x=[None if v is None else v * (1000.0 if agg.timed else 1.0) for v in mx], y=my,
+                             mode="lines", name="move (estimated duration)", hoverinfo="skip",
+                             line={"color": "#1f77b4", "dash": "dot"}))
+    top = max([p[1] for p in pts], default=0)
+    homing = agg.homings.items
+    traces.append(go.Scatter(x=_xs(agg, homing), y=[0] * len(homing), mode="markers", name="homing",
+                             marker={"symbol": "triangle-up", "size": 12, "color": "#2ca02c"}))
+    alarms = agg.alarm_marks.items
+    labelled = len(alarms) <= 50  # codes as text only while they stay readable (hover shows them)
+    traces.append(go.Scatter(x=_xs(agg, [a[0] for a in alarms]), y=[top] * len(alarms),
+                             mode="markers+text" if labelled else "markers",
+                             hovertext=[f"alarm {a[1]:02X}" for a in alarms],
+                             name="alarm answer", text=[f"{a[1]:02X}" for a in alarms],
+                             textposition="top center", customdata=[a[2] for a in alarms],
+                             marker={"symbol": "x", "size": 11, "color": "#d62728"}))
+    layout = _layout(agg, "Axis position as the answers tell it", 380,
+                     yaxis={"title": {"text": "Pos (pulses)"}, "rangemode": "tozero"})
+    return go.Figure(data=traces, layout=layout)
+
+
+def to_json(fig: go.Figure) -> str:
+    return str(pio.to_json(fig, validate=False))
+
+
+def turnaround_histogram(latencies_ms: dict[str, list[float]], title: str = "Answer turnaround",
+                         deadline_ms: float | None = spec.NO_ANSWER_TIMEOUT_S * 1000.0) -> str:
+    """An HTML fragment (a ``<div>`` and its script; plotly.js is not included: the page adds it once
+    with ``plotly_js()``) with a histogram of turnaround per command, for other reports."""
+    traces = [go.Histogram(x=values, name=header, opacity=0.75)
+              for header, values in sorted(latencies_ms.items())]
+    fig = go.Figure(data=traces, layout={"title": {"text": html.escape(title)}, "barmode": "overlay",
+                                         "height": 320, "xaxis": {"title": {"text": "ms"}},
+                                         "yaxis": {"title": {"text": "answers"}}})
+    if deadline_ms is not None:
+        fig.add_vline(x=deadline_ms, line={"color": "#b00020", "dash": "dash"},
+                      annotation_text=f"deadline {deadline_ms:g} ms")
+    return str(pio.to_html(fig, full_html=False, include_plotlyjs=False, config=CONFIG))
+
+
+OUTCOME_COLOUR = {"passed": "#2ca02c", "failed": "#d62728", "skipped": "#bcbd22", "error": "#7f0000"}
+
+
+def group_summary(groups: dict[str, dict[str, int]], title: str = "Checks per group") -> str:
+    """An HTML fragment (as ``turnaround_histogram``): one stacked bar per group (e.g. conformance
+    topic) of its outcome counts (``{"framing": {"passed": 9, "failed": 1}}``)."""
+    outcomes = sorted({o for counts in groups.values() for o in counts},
+                      key=lambda o: list(OUTCOME_COLOUR).index(o) if o in OUTCOME_COLOUR else 99)
+    names = list(groups)
+    traces = [go.Bar(y=names, x=[groups[g].get(o, 0) for g in names], name=o, orientation="h",
+                     marker={"color": OUTCOME_COLOUR.get(o, "#777")}) for o in outcomes]
+    fig = go.Figure(data=traces, layout={"title": {"text": html.escape(title)}, "barmode": "stack",
+                                         "height": 120 + 28 * len(names),
+                                         "xaxis": {"title": {"text": "checks"}},
+                                         "yaxis": {"autorange": "reversed"}, "margin": {"l": 160}})
+    return str(pio.to_html(fig, full_html=False, include_plotlyjs=False, config=CONFIG))
+
+
+def plotly_js() -> str:
+    """plotly.js itself, to inline once in a page."""
+    from plotly.offline import get_plotlyjs
+
+    return str(get_plotlyjs())
