@@ -26,7 +26,7 @@ from typing import Final
 
 from xac1_proto.chunk import Chunk
 
-from .base import Sides, Source
+from .base import Clock, Sides, Source, shown
 
 FORMAT: Final = "saleae"
 DESCRIPTION: Final = "Saleae Logic async serial export (analyzer CSV or Logic 2 data table)"
@@ -84,30 +84,39 @@ def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
     except StopIteration:
         report.problem(src.name, "empty file")
         return
-    header = [c.strip().lower() for c in next(csv.reader([header_line]))]
+    try:
+        header = [c.strip().lower() for c in next(csv.reader([header_line]))]
+    except (csv.Error, StopIteration):
+        header = []
     if tuple(header[:2]) == _ANALYZER:
         table = False
     elif tuple(header[:3]) == _TABLE:
         table = True
     else:
-        report.problem(src.where(number), f"not a Saleae header: {header_line[:60]!r}", nlines=1)
+        report.problem(src.where(number), f"not a Saleae header: {shown(header_line)}", nlines=1)
         return
     error_cols = [i for i, c in enumerate(header) if "error" in c]
     time_col = 2 if table else 0
     data_col = header.index("data") if table and "data" in header else (None if table else 1)
     held: Chunk | None = None
+    clock = Clock(report)
     for number, line in lines:
         if not line.strip():
             continue
         try:
             row = next(csv.reader([line]))
             t = float(row[time_col])
-        except (ValueError, IndexError, StopIteration):
-            report.problem(src.where(number), f"not a Saleae row: {line[:60]!r}", nlines=1)
+        except (ValueError, IndexError, StopIteration, csv.Error):
+            report.problem(src.where(number), f"not a Saleae row: {shown(line)}", nlines=1)
             continue
+        checked = clock.check(t, src.where(number))
+        if checked is None:  # no good time yet: the row cannot be placed
+            report.problem(src.where(number), "row skipped: no usable time before it", nlines=1)
+            continue
+        t = checked
         if len(row) != len(header):
             report.problem(src.where(number), f"row has {len(row)} field(s), the header {len(header)}: "
-                                              f"the row is damaged: {line[:60]!r}")
+                                              f"the row is damaged: {shown(line)}")
         key = src.name if (not table or multi_file) else row[0]
         d = sides.direction(key)
         if d is None:
@@ -126,7 +135,7 @@ def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
             continue
         value = value_byte(row[data_col]) if data_col is not None and data_col < len(row) else None
         if value is None:
-            report.problem(src.where(number), f"cannot read the byte value in {line[:60]!r}", nlines=1)
+            report.problem(src.where(number), f"cannot read the byte value in {shown(line)}", nlines=1)
             continue
         if held is not None:
             yield held

@@ -18,6 +18,7 @@ instance (``uart-2``) or a class (``rx-data``).
 from __future__ import annotations
 
 import heapq
+import math
 import re
 import statistics
 from collections.abc import Iterator
@@ -27,14 +28,14 @@ from typing import Final
 from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 
-from .base import FormatError, Source
+from .base import Clock, FormatError, Report, Source, shown
 
 FORMAT: Final = "sigrok"
 DESCRIPTION: Final = "sigrok-cli UART annotations (-A uart=rx-data)"
 HOST_DEFAULT: Final = "uart-1 (two instances) or tx-data (one instance)"
 SUFFIXES: Final = (".sigrok",)
 
-_LINE: Final = re.compile(r"(?:(\d+)-(\d+) )?([A-Za-z][\w.]*-\d+): (?:([a-z][a-z0-9-]*): )?(.*)")
+_LINE: Final = re.compile(r"(?:(\d{1,18})-(\d{1,18}) )?([A-Za-z][\w.]*-\d+): (?:([a-z][a-z0-9-]*): )?(.*)")
 _ERRORS: Final = {"frame error": "UART framing error", "parity error": "UART parity error"}
 _DATA_BITS: Final = spec.BITS_PER_BYTE - 2  # 8N1 less start and stop bits
 _PRESCAN: Final = 2000  # lines looked at to learn the instances and classes
@@ -71,7 +72,7 @@ def _first_text(rest: str) -> str:
 
 def read(src: Source, host_is: str | None = None, samplerate: float | None = None) -> Iterator[Chunk]:
     report = src.report
-    if samplerate is not None and samplerate <= 0:
+    if samplerate is not None and not (math.isfinite(samplerate) and samplerate > 0):
         raise FormatError(f"--samplerate {samplerate}: must be a positive rate in Hz")
     instances, classes, inferred = _prescan(src)
     if samplerate is None and inferred is not None:
@@ -97,7 +98,7 @@ def read(src: Source, host_is: str | None = None, samplerate: float | None = Non
 
 
 def _extra_lines(src: Source) -> Iterator[tuple[int, str]]:
-    with open(src.path, "rb") as f:
+    with src.reopen() as f:
         for number, raw in enumerate(f, 1):
             yield number, raw.decode("latin-1").rstrip("\r\n")
 
@@ -123,13 +124,14 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
     saw_samples = False
     last_byte: dict[Direction, Chunk] = {}
     forms: dict[str, str] = {}  # instance -> "hex" or "ascii", from its first data annotation
+    clock = Clock(report if report_all or only is None else _Quiet())
     for number, line in lines:
         if not line.strip():
             continue
         m = _LINE.fullmatch(line)
         if not m:
             if report_all:
-                report.problem(src.where(number), f"not a sigrok-cli annotation line: {line[:60]!r}",
+                report.problem(src.where(number), f"not a sigrok-cli annotation line: {shown(line)}",
                                nlines=1)
             continue
         start, _end, instance, cls, rest = m.groups()
@@ -153,21 +155,22 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
         form = "hex" if re.fullmatch(r'"?[0-9A-Fa-f]{2}"?', text.strip()) else "ascii"
         if value is not None and forms.setdefault(instance, form) != form:
             if report_all or only == instance:
-                report.problem(src.where(number), f"annotation {text!r} is {form} but {instance}'s earlier "
-                                                  f"ones are {forms[instance]} (one decoder prints one "
-                                                  f"format): the line is damaged, skipped", nlines=1)
+                report.problem(src.where(number), f"annotation {shown(text)} is {form} but "
+                                                  f"{instance}'s earlier ones are {forms[instance]} "
+                                                  f"(one decoder prints one format): the line is "
+                                                  f"damaged, skipped", nlines=1)
             continue
         if value is None:
             if not report_all:
                 continue
-            report.problem(src.where(number), f"annotation {text!r} is not a data byte (show only the "
+            report.problem(src.where(number), f"annotation {shown(text)} is not a data byte (show only the "
                                               f"data class: -A uart=rx-data)", nlines=1)
             continue
         t = None
         if start is not None:
             saw_samples = True
             if samplerate is not None:
-                t = int(start) / samplerate
+                t = clock.check(int(start) / samplerate, src.where(number))
         prev = last_byte.pop(d, None)
         if prev is not None:
             yield prev
@@ -181,6 +184,13 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
                     f"so timing checks (no-answer) are skipped")
 
 
+class _Quiet(Report):
+    """A report for the extra passes over the file: the first pass reports everything once."""
+
+    def problem(self, where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
+        pass
+
+
 def _instance_number(name: str) -> int:
     return int(name.rsplit("-", 1)[1])
 
@@ -191,7 +201,7 @@ def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
     instances: set[str] = set()
     classes: set[str] = set()
     spans: list[int] = []
-    with open(src.path, "rb") as f:
+    with src.reopen() as f:
         for raw in islice(f, _PRESCAN):
             m = _LINE.fullmatch(raw.decode("latin-1").rstrip("\r\n"))
             if m:
@@ -205,4 +215,4 @@ def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
     if spans:
         # a data annotation spans the 8 data bits
         rate = round(statistics.median(spans) / _DATA_BITS * spec.BAUD)
-    return instances, classes, rate or None
+    return instances, classes, rate if rate and rate > 0 else None

@@ -26,7 +26,7 @@ from typing import Final
 
 from xac1_proto.chunk import Chunk
 
-from .base import Report, Sides, Source, wallclock
+from .base import Clock, Report, Sides, Source, shown, wallclock
 
 FORMAT: Final = "socat"
 DESCRIPTION: Final = "socat -x / -v / -x -v dump"
@@ -34,7 +34,8 @@ HOST_DEFAULT: Final = ">"
 SUFFIXES: Final = (".socat",)
 
 _HEADER: Final = re.compile(
-    r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?length=(\d+) from=(\d+) to=(\d+)")
+    r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?"
+    r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})")
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
 _ESCAPES: Final = {"r": 0x0D, "n": 0x0A, "\\": 0x5C, "a": 0x07, "b": 0x08, "v": 0x0B, "f": 0x0C,
@@ -69,6 +70,7 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     sides = Sides(FORMAT, host_is, (">", "<"))
     clock = _Clock()
     report = src.report
+    times = Clock(report)
     # the transfer being read: (line, direction, t, length, data, mode "hex"/"text"/None)
     cur: dict | None = None
     text_bytes = 0
@@ -118,11 +120,16 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 assert d is not None
                 length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
                 _check_counters(m.group(1), length, start, end, following, report, src.where(number))
-                cur = {"line": number, "dir": d, "t": clock(m.group(2), m.group(3), m.group(4)),
+                try:
+                    t = times.check(clock(m.group(2), m.group(3), m.group(4)), src.where(number))
+                except ValueError as exc:
+                    report.problem(src.where(number), f"{exc}; the bytes are kept with the previous time")
+                    t = times.last
+                cur = {"line": number, "dir": d, "t": t,
                        "length": length, "data": bytearray(), "mode": None}
                 tail = text[m.end():].strip()
                 if tail:
-                    report.problem(src.where(number), f"unexpected text after the header: {tail!r}")
+                    report.problem(src.where(number), f"unexpected text after the header: {shown(tail)}")
                 continue
             if text.strip() == "--" or _DIAG.match(text):
                 if text.strip() == "--" or cur is None or cur["mode"] != "text":
@@ -136,7 +143,7 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                     rest = text
                 continue
             if cur is None:
-                report.problem(src.where(number), f"not a socat header, data or log line: {text[:60]!r}",
+                report.problem(src.where(number), f"not a socat header, data or log line: {shown(text)}",
                                nlines=1)
                 continue
             hm = _HEX.fullmatch(text)
@@ -148,7 +155,7 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 cur["mode"] = "text"
                 rest = text
                 continue
-            report.problem(src.where(number), f"cannot read this dump line: {text[:60]!r}", nlines=1)
+            report.problem(src.where(number), f"cannot read this dump line: {shown(text)}", nlines=1)
     if cur is not None and cur["mode"] == "text" and len(cur["data"]) == cur["length"]:
         src.unterminated = None  # -v text need not end with a newline: length= says it is whole
     chunk = finish(number if "number" in locals() else 0)
