@@ -33,6 +33,10 @@ class FormatError(Exception):
     """The file cannot be read as the format asked for at all (wrong magic, bad option)."""
 
 
+class WrongFormat(FormatError):
+    """Raised by ``Report.problem`` when ``give_up_after`` problems came before any data."""
+
+
 @dataclass
 class Report:
     """What could not be read, across all files of one decode run."""
@@ -42,6 +46,8 @@ class Report:
     unread_bytes: int = 0
     unread_lines: int = 0
     notes: list[str] = field(default_factory=list)
+    give_up_after: int | None = None  # raise WrongFormat at this many problems (cleared once data comes)
+    looks_like: str = ""  # what the files look like, for the WrongFormat message
 
     def problem(self, where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
         """Record one unreadable spot: ``where`` is ``file:line`` (or ``file@offset``)."""
@@ -51,6 +57,8 @@ class Report:
             self.problems.append(f"{where}: {message}")
         else:
             self.dropped += 1
+        if self.give_up_after is not None and self.total_problems >= self.give_up_after:
+            raise WrongFormat(f"{self.total_problems} problems before any data")
 
     def note(self, message: str) -> None:
         """A remark about the whole capture (lossy format, missing sample rate...), said once."""
@@ -225,6 +233,9 @@ def shown(text: str | bytes, limit: int = 60) -> str:
     """A short printable quote of what was read (non-ASCII escaped): never raw binary on a terminal."""
     if isinstance(text, bytes):
         text = text.decode("latin-1")
+    odd = sum(1 for c in text[:256] if not " " <= c <= "~" and c != "\t")
+    if odd * 4 > min(len(text), 256):
+        return f"{len(text)} byte(s) of binary data"
     cut = text[:limit]
     return ascii(cut) + ("..." if len(text) > limit else "")
 

@@ -49,6 +49,13 @@ def sniff(head: list[str]) -> int:
     return 0
 
 
+def one_direction(head: bytes) -> bool:
+    """Does a file starting with these bytes hold one line direction (the analyzer export) rather than
+    a data table naming its analyzers?"""
+    first = head.decode("latin-1").split("\n", 1)[0]
+    return tuple(c.strip().strip('"').lower() for c in first.split(",")[:2]) == _ANALYZER
+
+
 def value_byte(text: str) -> int | None:
     """A byte in any radix Saleae exports: ``0x30``, ``'0'``, ``0``, ``\\r``, ``0b00110000``."""
     text = text.strip()
