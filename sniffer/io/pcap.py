@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import os
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from functools import partial
 from typing import IO, Final
 
 from xac1_proto.chunk import HOST, Chunk, Direction
@@ -155,7 +156,8 @@ def _pcap_packets(src: Source, buf: _Buffer, magic: bytes) -> Iterator[tuple[str
             whole = buf.peek(16 + incl)
             if len(whole) < 16 + incl:
                 left = len(whole) - 16
-                if _pcap_resync(buf, order, ticks, last_sec, off + 1) is None:
+                if _pcap_resync(buf.offset, off + 1, buf.peek(_SCAN), order=order, ticks=ticks,
+                                last_sec=last_sec) is None:
                     src.report.problem(where, f"corrupt length {incl}: the record runs "
                                               f"{incl - left} byte(s) past the end of the file ({left} "
                                               f"left; or the file was cut short inside it)",
@@ -164,18 +166,9 @@ def _pcap_packets(src: Source, buf: _Buffer, magic: bytes) -> Iterator[tuple[str
                     return
                 why = f"corrupt length {incl}: it runs past the next record"
         if why is not None:
-            found = _pcap_resync(buf, order, ticks, last_sec, off + 1)
-            lost = (found if found is not None else buf.offset + len(buf.peek(_SCAN))) - off
-            src.report.problem(where, f"{why}; {lost} byte(s) skipped to the next plausible record"
-                               if found is not None else f"{why}; no plausible record follows: "
-                               f"the rest of the file ({lost} byte(s) from here) is skipped", nbytes=lost)
-            if found is None:
-                buf.skip(lost)
-                while buf.peek(_READ):  # the rest, unread
-                    src.report.unread_bytes += len(buf.peek(_READ))
-                    buf.skip(_READ)
+            if not _skip_damage(src, buf, where, why, off + 1,
+                                partial(_pcap_resync, order=order, ticks=ticks, last_sec=last_sec)):
                 return
-            buf.skip(found - off)
             n -= 1
             continue
         last_sec = sec
@@ -184,12 +177,36 @@ def _pcap_packets(src: Source, buf: _Buffer, magic: bytes) -> Iterator[tuple[str
         yield where, sec + frac * unit, data
 
 
-def _pcap_resync(buf: _Buffer, order: str, ticks: int, last_sec: int | None, start: int) -> int | None:
-    """The file offset of the next plausible pcap record at or after ``start`` (within the look-ahead):
-    a sane fraction and length, a time near the last good one, and either the end of the file or another
-    sane record header right after it."""
-    window = buf.peek(_SCAN)
-    base = buf.offset
+def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
+                 scan: Callable[[int, int, bytes], int | None]) -> bool:
+    """Report damage found at ``where`` and move to the next plausible record or block at or after
+    ``start`` (True), or to the end of the file when there is none (False). ``scan(base, start,
+    window)`` finds one in a look-ahead window; the window slides on, so memory stays bounded."""
+    off = buf.offset
+    while True:
+        window = buf.peek(_SCAN)
+        found = scan(buf.offset, start, window)
+        if found is not None:
+            lost = found - off
+            src.report.problem(where, f"{why}; {lost} byte(s) skipped to the next plausible record",
+                               nbytes=lost)
+            buf.skip(found - buf.offset)
+            return True
+        if len(window) < _SCAN:  # the end of the file is in the window
+            buf.skip(len(window))
+            lost = buf.offset - off
+            src.report.problem(where, f"{why}; nothing plausible follows: the rest of the file ({lost} "
+                                      f"byte(s)) is skipped", nbytes=lost)
+            return False
+        buf.skip(len(window) - _RESYNC_MAX - 32)
+        start = buf.offset
+
+
+def _pcap_resync(base: int, start: int, window: bytes, *, order: str, ticks: int,
+                 last_sec: int | None) -> int | None:
+    """The file offset of the next plausible pcap record at or after ``start`` in ``window`` (which
+    starts at file offset ``base``): a sane fraction and length, a time near the last good one, and
+    either the end of the window or another sane record header right after it."""
     for p in range(start - base, len(window) - 15):
         sec, frac, incl, orig = struct.unpack_from(order + "IIII", window, p)
         if frac >= ticks or incl > _RESYNC_MAX or incl > orig or incl < RTAC_HEADER.size:
@@ -241,7 +258,7 @@ def _pcapng_packets(src: Source, buf: _Buffer) -> Iterator[tuple[str, float | No
         if why is None:
             block = buf.peek(total)
             if len(block) < total:
-                if _pcapng_resync(buf, order, off + 4) is None:
+                if _pcapng_resync(buf.offset, off + 4, buf.peek(_SCAN), order=order) is None:
                     src.report.problem(where, f"the file ends inside block {n}: its length {total} runs "
                                               f"{total - len(block)} byte(s) past the end (the file was "
                                               f"cut short, or the length is corrupt)", nbytes=len(block))
@@ -252,18 +269,9 @@ def _pcapng_packets(src: Source, buf: _Buffer) -> Iterator[tuple[str, float | No
                 why = (f"block length {total} at its start but {struct.unpack(order + 'I', block[-4:])[0]} "
                        f"at its end: a corrupt length or a damaged block")
         if why is not None:
-            found = _pcapng_resync(buf, order, off + 4)
-            lost = (found if found is not None else buf.offset + len(buf.peek(_SCAN))) - off
-            src.report.problem(where, f"{why}; {lost} byte(s) skipped to the next block"
-                               if found is not None else f"{why}; no block follows: the rest of the file "
-                               f"({lost} byte(s) from here) is skipped", nbytes=lost)
-            if found is None:
-                buf.skip(lost)
-                while buf.peek(_READ):
-                    src.report.unread_bytes += len(buf.peek(_READ))
-                    buf.skip(_READ)
+            if not _skip_damage(src, buf, where, why, off + 4,
+                                partial(_pcapng_resync, order=order)):
                 return
-            buf.skip(found - off)
             n -= 1
             continue
         buf.skip(total)
@@ -283,11 +291,9 @@ def _bad_block_length(total: int, least: int) -> str | None:
     return None
 
 
-def _pcapng_resync(buf: _Buffer, order: str, start: int) -> int | None:
-    """The file offset of the next whole pcapng block at or after ``start`` (4-byte aligned as blocks
-    are, within the look-ahead): a plausible length repeated at the block's end."""
-    window = buf.peek(_SCAN)
-    base = buf.offset
+def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int | None:
+    """The file offset of the next whole pcapng block at or after ``start`` in ``window`` (which starts
+    at file offset ``base``; blocks are 4-byte aligned): a plausible length repeated at its end."""
     first = start - base
     first += -first % 4
     for p in range(first, len(window) - 11, 4):
