@@ -32,6 +32,7 @@ _TIMING: Final = re.compile(r"(\d{4}-\d\d-\d\d) (\d\d:\d\d:\d\d\.\d+):(?: (.*))?
 _COUNT: Final = re.compile(r"[0-9A-Fa-f]{8}")
 _HEX: Final = re.compile(r"(?:[0-9A-Fa-f]{2} ?)+")
 _SINGLE: Final = "(the only tty)"
+_SPILL: Final = 1 << 12  # bytes of one burst held before they are handed on
 
 
 def sniff(head: list[str]) -> int:
@@ -99,6 +100,9 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 report.problem(src.where(number), f"bytes of skipped tty {side!r}", nbytes=len(data))
             else:
                 pending = Chunk(pending.t, pending.dir, pending.data + data)
+                if len(pending.data) >= _SPILL:  # bounded memory on a huge burst
+                    yield pending
+                    pending = Chunk(pending.t, pending.dir, b"")
             break
     if pending is not None and pending.data:
         yield pending

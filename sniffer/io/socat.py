@@ -38,6 +38,7 @@ _HEADER: Final = re.compile(
     r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})")
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
+_SPILL: Final = 1 << 16  # bytes of one transfer held before they are handed on
 _ESCAPES: Final = {"r": 0x0D, "n": 0x0A, "\\": 0x5C, "a": 0x07, "b": 0x08, "v": 0x0B, "f": 0x0C,
                    "t": 0x09, "e": 0x1B}
 
@@ -82,26 +83,29 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
         if rec is None:
             return None
         data = bytes(rec["data"])
-        if len(data) != rec["length"]:
+        if _got(rec) != rec["length"]:
             report.problem(src.where(rec["line"]),
-                           f"transfer says length={rec['length']} but its dump holds {len(data)} "
+                           f"transfer says length={rec['length']} but its dump holds {_got(rec)} "
                            f"byte(s) (cut short before line {line})",
-                           nbytes=max(0, rec["length"] - len(data)))
+                           nbytes=max(0, rec["length"] - _got(rec)))
         return Chunk(rec["t"], rec["dir"], data) if data else None
 
     for number, line in src.lines():
         rest: str | None = line
         while rest is not None:
             text, rest = rest, None
-            if cur is not None and cur["mode"] == "text" and len(cur["data"]) < cur["length"]:
-                if _HEADER.match(text) and not cur["data"]:
+            if cur is not None and cur["mode"] == "text" and _got(cur) < cur["length"]:
+                if _HEADER.match(text) and not _got(cur):
                     pass  # an empty-looking transfer: fall through to the header
                 else:
                     consumed, cut = _take_text(text, cur, report, src.where(number))
                     text_bytes += consumed
-                    if len(cur["data"]) < cur["length"]:
+                    spilled = _spill(cur)
+                    if spilled:
+                        yield spilled
+                    if _got(cur) < cur["length"]:
                         cur["data"].append(0x0A)  # the line end was an LF byte
-                        if len(cur["data"]) == cur["length"]:
+                        if _got(cur) == cur["length"]:
                             chunk = finish(number)
                             if chunk:
                                 yield chunk
@@ -126,7 +130,7 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                     report.problem(src.where(number), f"{exc}; the bytes are kept with the previous time")
                     t = times.last
                 cur = {"line": number, "dir": d, "t": t,
-                       "length": length, "data": bytearray(), "mode": None}
+                       "length": length, "data": bytearray(), "sent": 0, "mode": None}
                 tail = text[m.end():].strip()
                 if tail:
                     report.problem(src.where(number), f"unexpected text after the header: {shown(tail)}")
@@ -150,13 +154,16 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
             if cur["mode"] in (None, "hex") and hm:
                 cur["mode"] = "hex"
                 cur["data"].extend(bytes.fromhex(hm.group(1)))
+                spilled = _spill(cur)
+                if spilled:
+                    yield spilled
                 continue
             if cur["mode"] is None:
                 cur["mode"] = "text"
                 rest = text
                 continue
             report.problem(src.where(number), f"cannot read this dump line: {shown(text)}", nlines=1)
-    if cur is not None and cur["mode"] == "text" and len(cur["data"]) == cur["length"]:
+    if cur is not None and cur["mode"] == "text" and _got(cur) == cur["length"]:
         src.unterminated = None  # -v text need not end with a newline: length= says it is whole
     chunk = finish(number if "number" in locals() else 0)
     if chunk:
@@ -164,6 +171,22 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     if text_bytes:
         report.note(f"{src.name}: socat -v text dump: an unprintable byte shows as '.', so a '.' may "
                     f"stand for another byte (use socat -x -v for exact bytes)")
+
+
+def _got(rec: dict) -> int:
+    """Bytes of a transfer read so far (handed on and held)."""
+    return int(rec["sent"]) + len(rec["data"])
+
+
+def _spill(rec: dict) -> Chunk | None:
+    """Hand on the bytes held of a long transfer (memory stays bounded whatever ``length=`` says)."""
+    data: bytearray = rec["data"]
+    if len(data) < _SPILL:
+        return None
+    chunk = Chunk(rec["t"], rec["dir"], bytes(data))
+    rec["sent"] += len(data)
+    data.clear()
+    return chunk
 
 
 def _check_counters(side: str, length: int, start: int, end: int, following: dict[str, int],
@@ -192,7 +215,7 @@ def _take_text(text: str, rec: dict, report: object, where: str) -> tuple[int, i
     data: bytearray = rec["data"]
     i = 0
     start = len(data)
-    while i < len(text) and len(data) < rec["length"]:
+    while i < len(text) and rec["sent"] + len(data) < rec["length"]:
         c = text[i]
         if c == "\\" and i + 1 < len(text) and text[i + 1] in _ESCAPES:
             data.append(_ESCAPES[text[i + 1]])
