@@ -100,7 +100,8 @@ def test_pcapng_later_section_header_with_implausible_length_does_not_end_the_fi
     """A second Section Header Block whose length is 2^32-4 silently ended the file (exit 0, packets
     after it gone). Now: reported with its offset, skipped, every packet after it decoded."""
     off = _epbs()[4][0]
-    shb = b"\x0a\x0d\x0d\x0a" + struct.pack("<I", 2**32 - 4) + b"\x4d\x3c\x2b\x1a" + struct.pack("<HHq", 1, 0, -1)
+    shb = (b"\x0a\x0d\x0d\x0a" + struct.pack("<I", 2**32 - 4) + b"\x4d\x3c\x2b\x1a"
+           + struct.pack("<HHq", 1, 0, -1))
     bad = tmp_path / "shb.pcapng"
     bad.write_bytes(PCAPNG[:off] + shb + PCAPNG[off:])
     result = xac1(str(bad), "--format", "jsonl")
@@ -317,6 +318,7 @@ def test_a_100_mb_line_without_a_newline_stays_under_64_mib(tmp_path: Path, layo
             piece = b"30" * (1 << 16)
         for _ in range((100 << 20) // len(piece)):
             f.write(piece)
-    code, peak = _peak_rss_mib([sys.executable, "-m", "xac1_proto", "decode", str(big), "--format", "summary"])
+    code, peak = _peak_rss_mib([sys.executable, "-m", "xac1_proto", "decode", str(big),
+                                "--format", "summary"])
     assert code in (1, 2)
     assert peak < 64, f"peak RSS {peak:.1f} MiB"
