@@ -207,7 +207,8 @@ class Tally:
 
     def latency_stats(self) -> dict[str, dict[str, float | int]]:
         """Per command header: count, min, median, max latency in ms."""
-        return {header: self.latencies[header].stats_ms() for header in sorted(self.latencies)}
+        return {header: self.latencies[header].stats_ms() for header in sorted(self.latencies)
+                if self.latencies[header].n}
 
     def summary(self) -> dict[str, Any]:
         ordered = sorted(self.violations.items(), key=lambda kv: list(spec.VIOLATIONS).index(kv[0])

@@ -164,10 +164,11 @@ def _pcap_packets(src: Source, buf: _Buffer, magic: bytes) -> Iterator[tuple[str
                                        nbytes=len(whole))
                     buf.skip(len(whole))
                     return
-                why = f"corrupt length {incl}: it runs past the next record"
+                why = (f"corrupt length {incl}: the record runs {incl - left} byte(s) past the end of "
+                       f"the file")
         if why is not None:
             if not _skip_damage(src, buf, where, why, off + 1,
-                                partial(_pcap_resync, order=order, ticks=ticks, last_sec=last_sec)):
+                                partial(_pcap_resync, order=order, ticks=ticks, last_sec=last_sec), "record"):
                 return
             n -= 1
             continue
@@ -178,7 +179,7 @@ def _pcap_packets(src: Source, buf: _Buffer, magic: bytes) -> Iterator[tuple[str
 
 
 def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
-                 scan: Callable[[int, int, bytes], int | None]) -> bool:
+                 scan: Callable[[int, int, bytes], int | None], unit: str) -> bool:
     """Report damage found at ``where`` and move to the next plausible record or block at or after
     ``start`` (True), or to the end of the file when there is none (False). ``scan(base, start,
     window)`` finds one in a look-ahead window; the window slides on, so memory stays bounded."""
@@ -188,7 +189,7 @@ def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
         found = scan(buf.offset, start, window)
         if found is not None:
             lost = found - off
-            src.report.problem(where, f"{why}; {lost} byte(s) skipped to the next plausible record",
+            src.report.problem(where, f"{why}; {lost} byte(s) skipped to the next plausible {unit}",
                                nbytes=lost)
             buf.skip(found - buf.offset)
             return True
@@ -264,13 +265,14 @@ def _pcapng_packets(src: Source, buf: _Buffer) -> Iterator[tuple[str, float | No
                                               f"cut short, or the length is corrupt)", nbytes=len(block))
                     buf.skip(len(block))
                     return
-                why = f"corrupt block length {total}: it runs past the next block"
+                why = (f"corrupt block length {total}: the block runs {total - len(block)} byte(s) past "
+                       f"the end of the file")
             elif struct.unpack(order + "I", block[-4:])[0] != total:
                 why = (f"block length {total} at its start but {struct.unpack(order + 'I', block[-4:])[0]} "
                        f"at its end: a corrupt length or a damaged block")
         if why is not None:
             if not _skip_damage(src, buf, where, why, off + 4,
-                                partial(_pcapng_resync, order=order)):
+                                partial(_pcapng_resync, order=order), "block"):
                 return
             n -= 1
             continue

@@ -38,6 +38,7 @@ _HEADER: Final = re.compile(
     r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})")
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
+_MAX_TRANSFER: Final = 1 << 24  # socat -b sets the transfer size (8192 by default); more is damage
 _SPILL: Final = 1 << 16  # bytes of one transfer held before they are handed on
 _ESCAPES: Final = {"r": 0x0D, "n": 0x0A, "\\": 0x5C, "a": 0x07, "b": 0x08, "v": 0x0B, "f": 0x0C,
                    "t": 0x09, "e": 0x1B}
@@ -124,6 +125,10 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 assert d is not None
                 length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
                 _check_counters(m.group(1), length, start, end, following, report, src.where(number))
+                if length > _MAX_TRANSFER:
+                    report.problem(src.where(number), f"length={length} is not plausible for one transfer "
+                                                      f"(expected at most {_MAX_TRANSFER}); read as that")
+                    length = _MAX_TRANSFER
                 try:
                     t = times.check(clock(m.group(2), m.group(3), m.group(4)), src.where(number))
                 except ValueError as exc:
