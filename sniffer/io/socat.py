@@ -21,7 +21,7 @@ Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from typing import Final
 
 from xac1_proto.chunk import Chunk
@@ -68,114 +68,142 @@ class _Clock:
         return wallclock(date, f"{clock}.{frac}" if frac else clock)
 
 
+# line kinds of the tokenizer
+HEADER, END, DIAG, BLANK, HEXROW, OTHER = "header", "end", "diag", "blank", "hex", "other"
+
+
+def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
+    """What one dump line (or the rest of one) is: a transfer header, the ``--`` end of an ``-x -v``
+    transfer, a socat diagnostic, a blank line, a row of hex bytes, or anything else (text or junk),
+    with the regular-expression match that read it."""
+    m = _HEADER.match(text)
+    if m:
+        return HEADER, m
+    if text.strip() == "--":
+        return END, None
+    if _DIAG.match(text):
+        return DIAG, None
+    if not text.strip():
+        return BLANK, None
+    hm = _HEX.fullmatch(text)
+    return (HEXROW, hm) if hm else (OTHER, None)
+
+
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    sides = Sides(FORMAT, host_is, (">", "<"))
-    clock = _Clock()
-    report = src.report
-    times = Clock(report)
-    # the transfer being read: (line, direction, t, length, data, mode "hex"/"text"/None)
-    cur: dict | None = None
-    text_bytes = 0
-    following: dict[str, int] = {}  # side name -> the from= its next transfer should have
-
-    def finish(line: int) -> Chunk | None:
-        nonlocal cur
-        rec, cur = cur, None
-        if rec is None:
-            return None
-        data = bytes(rec["data"])
-        if _got(rec) != rec["length"]:
-            report.problem(src.where(rec["line"]),
-                           f"transfer says length={rec['length']} but its dump holds {_got(rec)} "
-                           f"byte(s) (cut short before line {line})",
-                           nbytes=max(0, rec["length"] - _got(rec)))
-        return Chunk(rec["t"], rec["dir"], data) if data else None
-
+    builder = _Transfers(src, Sides(FORMAT, host_is, (">", "<")))
+    number = 0
     for number, line in src.lines():
         rest: str | None = line
         while rest is not None:
-            text, rest = rest, None
-            if cur is not None and cur["mode"] == "text" and _got(cur) < cur["length"]:
-                if _HEADER.match(text) and not _got(cur):
-                    pass  # an empty-looking transfer: fall through to the header
-                else:
-                    consumed, cut = _take_text(text, cur, report, src.where(number))
-                    text_bytes += consumed
-                    spilled = _spill(cur)
-                    if spilled:
-                        yield spilled
-                    if _got(cur) < cur["length"]:
-                        cur["data"].append(0x0A)  # the line end was an LF byte
-                        if _got(cur) == cur["length"]:
-                            chunk = finish(number)
-                            if chunk:
-                                yield chunk
-                        break
-                    chunk = finish(number)
-                    if chunk:
-                        yield chunk
-                    rest = text[cut:] or None
-                    continue
-            m = _HEADER.match(text)
-            if m:
-                chunk = finish(number)
-                if chunk:
-                    yield chunk
-                d = sides.direction(m.group(1))
-                assert d is not None
-                length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
-                _check_counters(m.group(1), length, start, end, following, report, src.where(number))
-                if length > _MAX_TRANSFER:
-                    report.problem(src.where(number), f"length={length} is not plausible for one transfer "
-                                                      f"(expected at most {_MAX_TRANSFER}); read as that")
-                    length = _MAX_TRANSFER
-                try:
-                    t = times.check(clock(m.group(2), m.group(3), m.group(4)), src.where(number))
-                except ValueError as exc:
-                    report.problem(src.where(number), f"{exc}; the bytes are kept with the previous time")
-                    t = times.last
-                cur = {"line": number, "dir": d, "t": t,
-                       "length": length, "data": bytearray(), "sent": 0, "mode": None}
-                tail = text[m.end():].strip()
-                if tail:
-                    report.problem(src.where(number), f"unexpected text after the header: {shown(tail)}")
-                continue
-            if text.strip() == "--" or _DIAG.match(text):
-                if text.strip() == "--" or cur is None or cur["mode"] != "text":
-                    chunk = finish(number)
-                    if chunk:
-                        yield chunk
-                continue
-            if not text.strip():
-                if cur is not None and cur["mode"] is None:
-                    cur["mode"] = "text"
-                    rest = text
-                continue
-            if cur is None:
-                report.problem(src.where(number), f"not a socat header, data or log line: {shown(text)}",
-                               nlines=1)
-                continue
-            hm = _HEX.fullmatch(text)
-            if cur["mode"] in (None, "hex") and hm:
-                cur["mode"] = "hex"
-                cur["data"].extend(bytes.fromhex(hm.group(1)))
-                spilled = _spill(cur)
-                if spilled:
-                    yield spilled
-                continue
-            if cur["mode"] is None:
+            rest = yield from builder.step(number, rest)
+    yield from builder.end(number)
+
+
+class _Transfers:
+    """The chunk builder: turns the tokenized lines into one chunk per transfer (long transfers in
+    bounded pieces), checking ``length=`` and the counters."""
+
+    def __init__(self, src: Source, sides: Sides) -> None:
+        self.src = src
+        self.report = src.report
+        self.sides = sides
+        self.clock = _Clock()
+        self.times = Clock(src.report)
+        # the transfer being read: line, direction, t, length, data, sent, mode "hex"/"text"/None
+        self.cur: dict | None = None
+        self.text_bytes = 0
+        self.following: dict[str, int] = {}  # side name -> the from= its next transfer should have
+
+    def finish(self, line: int) -> Iterator[Chunk]:
+        rec, self.cur = self.cur, None
+        if rec is None:
+            return
+        if _got(rec) != rec["length"]:
+            self.report.problem(self.src.where(rec["line"]),
+                                f"transfer says length={rec['length']} but its dump holds {_got(rec)} "
+                                f"byte(s) (cut short before line {line})",
+                                nbytes=max(0, rec["length"] - _got(rec)))
+        if rec["data"]:
+            yield Chunk(rec["t"], rec["dir"], bytes(rec["data"]))
+
+    def step(self, number: int, text: str) -> Generator[Chunk, None, str | None]:
+        """Read one line or the rest of one; returns (as the generator's value) a rest still to read."""
+        cur = self.cur
+        if cur is not None and cur["mode"] == "text" and _got(cur) < cur["length"] and \
+                not (_got(cur) == 0 and _HEADER.match(text)):  # else an empty-looking transfer
+            return (yield from self._text(number, text))
+        kind, m = tokenize(text)
+        if kind == HEADER:
+            assert m is not None
+            yield from self.finish(number)
+            self._header(number, m, text)
+        elif kind in (END, DIAG):
+            if kind == END or cur is None or cur["mode"] != "text":
+                yield from self.finish(number)
+        elif kind == BLANK:
+            if cur is not None and cur["mode"] is None:
                 cur["mode"] = "text"
-                rest = text
-                continue
-            report.problem(src.where(number), f"cannot read this dump line: {shown(text)}", nlines=1)
-    if cur is not None and cur["mode"] == "text" and _got(cur) == cur["length"]:
-        src.unterminated = None  # -v text need not end with a newline: length= says it is whole
-    chunk = finish(number if "number" in locals() else 0)
-    if chunk:
-        yield chunk
-    if text_bytes:
-        report.note(f"{src.name}: socat -v text dump: an unprintable byte shows as '.', so a '.' may "
-                    f"stand for another byte (use socat -x -v for exact bytes)")
+                return text
+        elif cur is None:
+            self.report.problem(self.src.where(number), f"not a socat header, data or log line: "
+                                                        f"{shown(text)}", nlines=1)
+        elif kind == HEXROW and cur["mode"] in (None, "hex"):
+            assert m is not None
+            cur["mode"] = "hex"
+            cur["data"].extend(bytes.fromhex(m.group(1)))
+            yield from _spill(cur)
+        elif cur["mode"] is None:
+            cur["mode"] = "text"
+            return text
+        else:
+            self.report.problem(self.src.where(number), f"cannot read this dump line: {shown(text)}",
+                                nlines=1)
+        return None
+
+    def _text(self, number: int, text: str) -> Generator[Chunk, None, str | None]:
+        """-v text of the current transfer; returns what follows its last byte on the line."""
+        cur = self.cur
+        assert cur is not None
+        consumed, cut = _take_text(text, cur)
+        self.text_bytes += consumed
+        yield from _spill(cur)
+        if _got(cur) < cur["length"]:
+            cur["data"].append(0x0A)  # the line end was an LF byte
+            if _got(cur) == cur["length"]:
+                yield from self.finish(number)
+            return None
+        yield from self.finish(number)
+        return text[cut:] or None
+
+    def _header(self, number: int, m: re.Match[str], text: str) -> None:
+        report, where = self.report, self.src.where(number)
+        d = self.sides.direction(m.group(1))
+        assert d is not None
+        length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
+        _check_counters(m.group(1), length, start, end, self.following, report, where)
+        if length > _MAX_TRANSFER:
+            report.problem(where, f"length={length} is not plausible for one transfer (expected at "
+                                  f"most {_MAX_TRANSFER}); read as that")
+            length = _MAX_TRANSFER
+        try:
+            t = self.times.check(self.clock(m.group(2), m.group(3), m.group(4)), where)
+        except ValueError as exc:
+            report.problem(where, f"{exc}; the bytes are kept with the previous time")
+            t = self.times.last
+        self.cur = {"line": number, "dir": d, "t": t, "length": length, "data": bytearray(), "sent": 0,
+                    "mode": None}
+        tail = text[m.end():].strip()
+        if tail:
+            report.problem(where, f"unexpected text after the header: {shown(tail)}")
+
+    def end(self, number: int) -> Iterator[Chunk]:
+        cur = self.cur
+        if cur is not None and cur["mode"] == "text" and _got(cur) == cur["length"]:
+            self.src.unterminated = None  # -v text need not end with a newline: length= says it is whole
+        yield from self.finish(number)
+        if self.text_bytes:
+            self.report.note(f"{self.src.name}: socat -v text dump: an unprintable byte shows as '.', so "
+                             f"a '.' may stand for another byte (use socat -x -v for exact bytes)")
 
 
 def _got(rec: dict) -> int:
@@ -183,15 +211,13 @@ def _got(rec: dict) -> int:
     return int(rec["sent"]) + len(rec["data"])
 
 
-def _spill(rec: dict) -> Chunk | None:
+def _spill(rec: dict) -> Iterator[Chunk]:
     """Hand on the bytes held of a long transfer (memory stays bounded whatever ``length=`` says)."""
     data: bytearray = rec["data"]
-    if len(data) < _SPILL:
-        return None
-    chunk = Chunk(rec["t"], rec["dir"], bytes(data))
-    rec["sent"] += len(data)
-    data.clear()
-    return chunk
+    if len(data) >= _SPILL:
+        yield Chunk(rec["t"], rec["dir"], bytes(data))
+        rec["sent"] += len(data)
+        data.clear()
 
 
 def _check_counters(side: str, length: int, start: int, end: int, following: dict[str, int],
@@ -215,7 +241,7 @@ def _check_counters(side: str, length: int, start: int, end: int, following: dic
     following[side] = start + length
 
 
-def _take_text(text: str, rec: dict, report: object, where: str) -> tuple[int, int]:
+def _take_text(text: str, rec: dict) -> tuple[int, int]:
     """Decode -v text into ``rec['data']`` until its length is reached; returns (bytes, chars used)."""
     data: bytearray = rec["data"]
     i = 0
