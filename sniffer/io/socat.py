@@ -13,7 +13,9 @@ start with ``000`` is read that way, the first other nine-digit fraction switche
 socat's own diagnostics (``2024/05/01 10:00:00 socat[123] N ...``) are skipped. socat counts each
 direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``length=``, or a
 ``from=`` past where that side's previous transfer ended (transfers lost), is reported. A restarted
-socat appending to the same log starts again at ``from=0``, which is accepted.
+socat appending to the same log starts again at ``from=0``, which is accepted. The reader is a line
+tokenizer (``tokenize``: what a line is) and a chunk builder (``_Transfers``: one chunk per transfer,
+handed on in bounded pieces; ``length=`` beyond 16 MiB is damage).
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
