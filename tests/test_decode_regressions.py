@@ -322,3 +322,44 @@ def test_a_100_mb_line_without_a_newline_stays_under_64_mib(tmp_path: Path, layo
                                 "--format", "summary"])
     assert code in (1, 2)
     assert peak < 64, f"peak RSS {peak:.1f} MiB"
+
+
+# ---- statistics and views on damaged times (records.py, view.py) ----
+
+@pytest.mark.parametrize("t", [float("nan"), float("inf"), -float("inf"), 1e300, -1e300])
+def test_time_column_and_latency_statistics_survive_any_float(t: float) -> None:
+    """``show_time`` and the latency statistics raised ``ValueError``/``OverflowError`` on NaN,
+    infinite and absurd times; a damaged time is shown as such and never counted as a latency."""
+    from sniffer.records import LatencyStats, Tally
+    from sniffer.view import show_time
+
+    assert show_time(t).strip().startswith("?") and len(show_time(t)) == 12
+    stats = LatencyStats()
+    stats.add(t)
+    stats.add(0.002)
+    assert stats.stats_ms() == {"n": 1, "min": 2.0, "median": 2.0, "max": 2.0}
+    tally = Tally()
+    tally.latencies["0RV"] = LatencyStats()
+    tally.latencies["0RV"].add(t)
+    assert tally.latency_stats() == {}
+
+
+def test_sniffing_a_pipe_does_not_consume_it() -> None:
+    """Format detection reads a buffered head of the one open file; reading then starts from byte 0."""
+    from sniffer.io.base import Report, Source
+    from sniffer.io.registry import Capture, detect
+
+    data = (CAPTURES / "socat-x.log").read_bytes()
+    read_fd, write_fd = os.pipe()
+    writer = threading.Thread(target=lambda: (os.write(write_fd, data), os.close(write_fd)), daemon=True)
+    writer.start()
+    report = Report()
+    src = Source(f"/dev/fd/{read_fd}", report, name="pipe")
+    assert not src.regular and detect([src]).name == "socat"
+    with Capture([src], "socat", report=report) as capture:
+        chunks = list(capture)
+    writer.join(5)
+    os.close(read_fd)
+    with Capture([str(CAPTURES / "socat-x.log")], "socat") as direct:
+        assert [(c.t, c.dir, c.data) for c in chunks] == [(c.t, c.dir, c.data) for c in direct]
+    assert chunks[0].data == b"0RV\r\n" and not report.problems

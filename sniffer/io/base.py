@@ -1,8 +1,11 @@
 """What every capture reader shares: the source file, the problem report, side naming and time parsing.
 
 How this works: a reader is a generator ``read(src, host_is) -> Iterator[Chunk]``. It pulls lines (or
-bytes) from a ``Source``, which counts the bytes consumed (for a progress bar) and caps line length so a
-binary file fed to a text reader cannot use unbounded memory. Anything it cannot read goes to the
+bytes) from a ``Source``, which opens the file once (a buffered head serves format sniffing, so ``-``,
+pipes and FIFOs work), counts the bytes consumed (for a progress bar) and caps line length so a binary
+file fed to a text reader cannot use unbounded memory. Times pass a ``Clock``: one that is not a number,
+out of range or impossible (``wallclock``: hour 27, day 32) is reported and the bytes keep the previous
+time. Anything it cannot read goes to the
 ``Report`` with the file name and line number, counting the bytes or lines lost, and reading goes on.
 The report keeps the first ``MAX_KEPT`` messages and counts the rest, so memory stays constant whatever
 the file size. ``Sides`` maps the names a format gives its two lines (``>``/``<``, ``TX``/``RX``, a tty
