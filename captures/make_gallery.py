@@ -255,13 +255,14 @@ def write_saleae_table(out: Path, glitch: bool = False) -> None:
 
 
 def write_interceptty(out: Path, timestamps: bool = False) -> None:
-    """interceptty: ``>`` bytes from the program on the front pty (the host), ``<`` from the device."""
+    """interceptty: ``<`` bytes the program on the front pty (the host) wrote, ``>`` (and a tab) bytes
+    the device answered on the back port (interceptty's direction flags 0 and 1)."""
     with open(out, "w") as f:
         for c in timeline():
             stamp = time.strftime("[%H:%M %S", time.localtime(c.t)) + f".{round(c.t % 1 * 1e6):06d}]"
             for k, b in enumerate(c.data):
                 prefix = (stamp if k == 0 else " " * len(stamp)) if timestamps else ""
-                arrow = "> \t" if c.dir == "host" else "< "
+                arrow = "< " if c.dir == "host" else "> \t"
                 char = f" ({chr(b)})" if 33 <= b <= 126 else ""
                 f.write(f"{prefix}{arrow}0x{b:02x}{char}\n")
 

@@ -1,61 +1,113 @@
 """``xac1 decode``: read a capture made by any common serial tool and show the checked conversation.
 
-A thin shell: ``sniffer.io.registry`` picks the reader (content sniffing, or ``--input-format``) and
-turns the files into chunks merged by time; the sniffer's ``Analyzer`` makes records; the sniffer's
-views print them. Problems in the file (a malformed line, a truncated record) are listed on stderr
-with file and line, and what could be read is decoded anyway.
+A thin shell in three parts: argument parsing (``add_arguments``, each value checked as it is parsed),
+source opening (``_open_sources``: each file opened once, ``-`` being standard input; the format sniffed
+from the buffered heads by ``sniffer.io.registry``, ``_choose_format``), and output (``_decode``: the
+sniffer's ``Analyzer`` makes records, the sniffer's views print them). Problems in the file (a malformed
+line, a damaged record) are listed on stderr with file and line or byte offset, counted in the summary
+record, and what could be read is decoded anyway.
 
-Exit status: 0 every byte read and no violation; 1 violations found or part of the capture could not be
-read (or the file looks cut short); 2 nothing decoded (missing file, unknown format, bad option, a
-capture holding no line data).
+Exit status: 0 every byte read and no violation; 1 violations found or problems in the capture (their
+count is said, and is ``problems`` in the JSON lines summary); 2 nothing decoded (missing file, unknown
+or wrong format, bad option, a capture holding no line data).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
-from typing import TYPE_CHECKING, Any
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any, Final
 
 from xac1_proto import spec
 
 if TYPE_CHECKING:
+    from .io.base import Report, Source
     from .io.registry import Capture
 
 HELP = "decode a capture file (socat, spy://, interceptty, jpnevulator, Saleae, sigrok, pcap, raw, jsonl)"
 PROGRESS_MIN_BYTES = 1 << 20  # show a progress bar on a terminal from this file size up
+WRONG_FORMAT_LIMIT: Final = 10  # problems before any data, with --input-format: the format is wrong
+WRONG_FORMAT_SHOWN: Final = 3  # of which this many are printed
+SUMMARY_PROBLEMS: Final = 5  # problem messages copied into the JSON lines summary record
 _INPUT_FORMATS = ("auto", "jsonl", "pcap", "socat", "spy", "interceptty", "jpnevulator", "saleae",
                   "sigrok", "raw")
+_HEADERS: Final = frozenset(spec.HEADERS[spec.COMMAND] | spec.HEADERS[spec.ANSWER])
+
+
+def _seconds(text: str) -> float:
+    """``--timeout``: a positive, finite number of seconds."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not math.isfinite(value) or value <= 0 or value > 86400:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds above 0 and at most 86400")
+    return value
+
+
+def _rate(text: str) -> float:
+    """``--samplerate``: a positive, finite rate in Hz."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a rate in Hz") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a sample rate in Hz above 0")
+    return value
+
+
+def _count(text: str) -> int:
+    """``--storm-limit``: a whole number from 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number from 1")
+    return value
+
+
+def _header(text: str) -> str:
+    """``--header``: a command or answer header of the protocol (``0MV``)."""
+    header = text.strip().upper()
+    if header not in _HEADERS:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a header of the protocol; one of: "
+                                         f"{', '.join(sorted(_HEADERS))}")
+    return header
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.epilog = ("host side by default: socat '>'; spy TX; interceptty '>'; jpnevulator the tty named host, "
+    p.epilog = ("host side by default: socat '>'; spy TX; interceptty '<'; jpnevulator the tty named host, "
                 "else the first to speak; saleae the file/analyzer named host, else the first file; sigrok "
                 "uart-1 (several decoder instances) or tx-data (one); pcap TX; raw the file named host, else "
                 "the first file. See README \"Decoding captures\".")
     p.add_argument("files", nargs="+", metavar="FILE",
-                   help="capture file(s); formats with one file per direction take two")
+                   help="capture file(s) ('-' is standard input; pipes and FIFOs work); formats with one "
+                        "file per direction take two")
     p.add_argument("--input-format", "-I", default="auto", choices=_INPUT_FORMATS,
                    help="the capture's format (default: sniffed from the content)")
     p.add_argument("--format", "-f", default="text", choices=("text", "jsonl", "summary"),
                    help="output: a line per frame (text), the JSON lines schema (jsonl), or only the summary")
     p.add_argument("--only-violations", action="store_true",
                    help="show only records with a violation (the summary still counts everything)")
-    p.add_argument("--header", action="append", metavar="HDR", default=None,
+    p.add_argument("--header", action="append", metavar="HDR", default=None, type=_header,
                    help="show only frames of this command header (and their answers), e.g. 0MV; repeatable")
     p.add_argument("--host-is", metavar="SIDE", default=None,
                    help="which side is the host, named as the format names it: socat '>' or '<', spy TX/RX, "
                         "a jpnevulator alias or tty, a sigrok instance (uart-1) or class (tx-data), a Saleae "
                         "file or analyzer name, a raw file, pcap TX/RX")
-    p.add_argument("--samplerate", type=float, metavar="HZ", default=None,
+    p.add_argument("--samplerate", type=_rate, metavar="HZ", default=None,
                    help="sigrok: sample rate turning sample numbers (--protocol-decoder-samplenum) into "
                         f"time (default: inferred from the byte lengths at {spec.BAUD} baud)")
-    p.add_argument("--timeout", "--no-answer-timeout", dest="no_answer_timeout", type=float, metavar="S",
+    p.add_argument("--timeout", "--no-answer-timeout", dest="no_answer_timeout", type=_seconds, metavar="S",
                    default=None, help="no-answer timeout in seconds after a command's last byte; moves get "
-                                      "their estimated time doubled on top "
-                                      f"(default {spec.NO_ANSWER_TIMEOUT_S}, as xac1 sniff)")
-    p.add_argument("--storm-limit", type=int, default=None, metavar="N",
+                                      f"their estimated time doubled on top (default "
+                                      f"{spec.NO_ANSWER_TIMEOUT_S:g}, as xac1 sniff)")
+    p.add_argument("--storm-limit", type=_count, default=None, metavar="N",
                    help="communication-error answers in a row after which a command is comm-error-storm "
                         f"(default {spec.STORM_LIMIT})")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
@@ -64,47 +116,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also write an HTML session report to FILE (needs the 'report' extra)")
 
 
+
 def _error(message: str) -> int:
     print(f"xac1 decode: {message}", file=sys.stderr)
     return 2
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from .io.base import FormatError, Report
+    from .io.registry import Capture
 
-    from .io.base import FormatError
-    from .io.registry import SURE, Capture, detect
-
-    for f in args.files:
-        path = Path(f)
-        if not path.exists():
-            return _error(f"{f}: no such file")
-        if path.is_dir():
-            return _error(f"{f}: is a directory; give the capture file(s) in it")
-    if args.report and all(Path(f).stat().st_size == 0 for f in args.files):  # nothing to detect
-        from .report import ReportError, write_empty
-        try:
-            written = write_empty(args.report, [(f, "empty") for f in args.files])
-            print(f"xac1 decode: report written to {written}", file=sys.stderr)
-        except ReportError as exc:
-            return _error(str(exc))
+    report = Report()
+    sources: list[Source] = []
     try:
-        fmt = args.input_format
-        if fmt == "auto":
-            found = detect(args.files)
-            fmt = found.name
-            close = [(n, s) for n, s in found.considered[1:] if s >= SURE]
-            if close:
-                others = ", ".join(f"{n} ({s})" for n, s in close)
-                print(f"xac1 decode: reading as {fmt} (also considered: {others})", file=sys.stderr)
-        if len(args.files) == 1 and fmt in ("saleae", "raw"):
-            partner = _partner(args.files[0])
-            if partner is not None:
-                print(f"xac1 decode: {fmt} keeps one line direction a file: reading {partner} with it",
-                      file=sys.stderr)
-                args.files.append(partner)
-        with Capture(args.files, fmt, host_is=args.host_is, samplerate=args.samplerate) as capture:
-            return _decode(capture, args)
+        if args.report and _all_empty(args.files):  # nothing to detect, but the report says so
+            return _empty_report(args)
+        sources = _open_sources(args.files, report)
+        fmt, one_sided = _choose_format(sources, args, report)
+        with Capture(sources, fmt, host_is=args.host_is, samplerate=args.samplerate,
+                     report=report) as capture:
+            return _decode(capture, args, one_sided)
     except FormatError as exc:
         return _error(str(exc))
     except BrokenPipeError:  # output piped into head & co.
@@ -112,66 +143,93 @@ def run(args: argparse.Namespace) -> int:
         return 0
     except OSError as exc:
         return _error(f"{exc.filename or ''}: {exc.strerror or exc}")
+    finally:
+        for src in sources:
+            src.close()
 
 
-def _decode(capture: Capture, args: argparse.Namespace) -> int:
-    from .analyzer import Analyzer
-    from .view import make_view
+# ---- source opening ----
 
-    options: dict[str, Any] = {}
-    if args.no_answer_timeout is not None:
-        options["no_answer_timeout"] = args.no_answer_timeout
-    if args.storm_limit is not None:
-        options["storm_limit"] = args.storm_limit
-    analyzer = Analyzer(**options)
-    html_report = None
-    if args.report:
-        from .report import ReportError, SessionReport
-        try:
-            html_report = SessionReport.open(args.report, [(f, capture.format) for f in args.files],
-                                        analyzer.no_answer_timeout)
-        except ReportError as exc:
-            return _error(str(exc))
-    color = args.color
-    view = make_view("text" if args.format == "summary" else args.format, sys.stdout, color)
-    show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
-    progress = _Progress(capture) if sys.stderr.isatty() and capture.size >= PROGRESS_MIN_BYTES else None
-    violations = 0
-    for chunk in capture:
-        for record in analyzer.feed(chunk):
-            violations += bool(record.violations)
-            if show is not None and show(record):
-                view.write(record)
-            if html_report is not None:
-                html_report.add(record)
-        if progress is not None:
-            progress.update()
-    for record in analyzer.close():
-        violations += bool(record.violations)
-        if show is not None and show(record):
-            view.write(record)
-        if html_report is not None:
-            html_report.add(record)
-    if progress is not None:
-        progress.done()
-    view.summary(analyzer.summary())
-    if html_report is not None:
-        print(f"xac1 decode: report written to {html_report.write(analyzer.summary())}", file=sys.stderr)
-    report = capture.report
-    empty = not (analyzer.bytes_in("host") or analyzer.bytes_in("device"))
-    for note in report.notes:
-        print(f"xac1 decode: note: {note}", file=sys.stderr)
-    for problem in report.problems:
-        print(f"xac1 decode: {problem}", file=sys.stderr)
-    if report.dropped:
-        print(f"xac1 decode: ... and {report.dropped} more problem(s)", file=sys.stderr)
-    if empty:
-        print(f"xac1 decode: {', '.join(args.files)}: no line data found in this {capture.format} "
-              f"capture: nothing to decode", file=sys.stderr)
-        return 2
-    if report.total_problems or report.unread_bytes or report.unread_lines:
-        print(f"xac1 decode: {capture.format}: {report.summary()}; the rest was decoded", file=sys.stderr)
-    return 1 if violations or report.total_problems else 0
+def _all_empty(files: list[str]) -> bool:
+    from pathlib import Path
+
+    from .io.base import STDIN
+
+    return all(f != STDIN and Path(f).is_file() and Path(f).stat().st_size == 0 for f in files)
+
+
+def _empty_report(args: argparse.Namespace) -> int:
+    """Zero-byte files: no format to detect, nothing to decode; the report says so."""
+    from .report import ReportError, write_empty
+
+    try:
+        written = write_empty(args.report, [(f, "empty") for f in args.files])
+    except ReportError as exc:
+        return _error(str(exc))
+    print(f"xac1 decode: report written to {written}", file=sys.stderr)
+    return 2
+
+
+def _open_sources(files: list[str], report: Report) -> list[Source]:
+    """Each file opened once (``-``: standard input); a missing file or a directory is a FormatError."""
+    from pathlib import Path
+
+    from .io.base import STDIN, FormatError, Source
+
+    if files.count(STDIN) > 1:
+        raise FormatError("'-' (standard input) can be given once")
+    sources: list[Source] = []
+    try:
+        for f in files:
+            if f != STDIN:
+                path = Path(f)
+                if not path.exists():
+                    raise FormatError(f"{f}: no such file")
+                if path.is_dir():
+                    raise FormatError(f"{f}: is a directory; give the capture file(s) in it")
+            sources.append(Source(f, report))
+    except BaseException:
+        for src in sources:
+            src.close()
+        raise
+    return sources
+
+
+def _choose_format(sources: list[Source], args: argparse.Namespace, report: Report) -> tuple[str, bool]:
+    """The input format (sniffed, or ``--input-format``); a found partner file is appended to
+    ``sources``. Also says whether the capture holds one line direction only (half of a capture that
+    keeps one direction a file, the other file missing)."""
+    from .io import saleae
+    from .io.base import Source
+    from .io.registry import SURE, detect, sniff_one
+
+    fmt = args.input_format
+    if fmt == "auto":
+        found = detect(sources)
+        fmt = found.name
+        close = [(n, s) for n, s in found.considered[1:] if s >= SURE]
+        if close:
+            others = ", ".join(f"{n} ({s})" for n, s in close)
+            print(f"xac1 decode: reading as {fmt} (also considered: {others})", file=sys.stderr)
+    else:
+        looks = [(src.name, sniff_one(src)) for src in sources]
+        report.give_up_after = WRONG_FORMAT_LIMIT
+        report.looks_like = ", ".join(f"{name} looks like a {seen} capture" for name, seen in looks
+                                      if seen not in (None, fmt))
+    one_file_per_side = fmt == "raw" or (fmt == "saleae" and all(
+        saleae.one_direction(src.head()) for src in sources))
+    if len(sources) == 1 and one_file_per_side:
+        partner = _partner(sources[0].name) if sources[0].regular else None
+        if partner is None:
+            report.note(f"{sources[0].name} holds one line direction only ({fmt} keeps one a file) and "
+                        f"no file of the other direction was given or found: the other direction is "
+                        f"missing, so nothing that needs both (answers, pairing, no-answer, alarms) is "
+                        f"judged; give both files")
+            return fmt, True
+        print(f"xac1 decode: {fmt} keeps one line direction a file: reading {partner} with it",
+              file=sys.stderr)
+        sources.append(Source(partner, report))
+    return fmt, False
 
 
 def _partner(path: str) -> str | None:
@@ -187,6 +245,105 @@ def _partner(path: str) -> str | None:
                        flags=re.IGNORECASE)
     candidate = os.path.join(folder, other)
     return candidate if n and candidate != path and os.path.isfile(candidate) else None
+
+
+# ---- output ----
+
+def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False) -> int:
+    from .analyzer import Analyzer
+    from .io.base import WrongFormat
+    from .records import Tally
+    from .view import make_view
+
+    options: dict[str, Any] = {}
+    if args.no_answer_timeout is not None:
+        options["no_answer_timeout"] = args.no_answer_timeout
+    if args.storm_limit is not None:
+        options["storm_limit"] = args.storm_limit
+    analyzer = Analyzer(**options)
+    tally = Tally() if one_sided else None
+    html_report = None
+    if args.report:
+        from .report import ReportError, SessionReport
+        try:
+            html_report = SessionReport.open(args.report, [(s.name, capture.format) for s in capture.sources],
+                                             analyzer.no_answer_timeout)
+        except ReportError as exc:
+            return _error(str(exc))
+    view = make_view("text" if args.format == "summary" else args.format, sys.stdout, args.color)
+    show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
+    report = capture.report
+    violations = 0
+
+    def emit(records: list[Any]) -> None:
+        nonlocal violations
+        for record in records:
+            if tally is not None:
+                record = _one_sided(record)
+                if record is None:
+                    continue
+                tally.add(record)
+            violations += bool(record.violations)
+            if show is not None and show(record):
+                view.write(record)
+            if html_report is not None:
+                html_report.add(record)
+
+    try:
+        with _progress(capture) as progress:
+            for chunk in capture:
+                report.give_up_after = None  # data came: the format reads
+                emit(analyzer.feed(chunk))
+                progress.update()
+    except WrongFormat:
+        _print_problems(report, WRONG_FORMAT_SHOWN)
+        looks = f" ({report.looks_like})" if report.looks_like else ""
+        return _error(f"{WRONG_FORMAT_LIMIT} problems and no line data at the start: this is not a "
+                      f"{capture.format} capture{looks}; leave --input-format out to detect the format")
+    emit(analyzer.close())
+    summary = tally.summary() if tally is not None else analyzer.summary()
+    if report.total_problems:
+        summary["problems"] = report.total_problems
+        summary["problem_messages"] = report.problems[:SUMMARY_PROBLEMS]
+    if report.notes:
+        summary["notes"] = list(report.notes)
+    view.summary(summary)
+    if html_report is not None:
+        print(f"xac1 decode: report written to {html_report.write(summary)}", file=sys.stderr)
+    empty = not (analyzer.bytes_in("host") or analyzer.bytes_in("device"))
+    for note in report.notes:
+        print(f"xac1 decode: note: {note}", file=sys.stderr)
+    _print_problems(report)
+    if empty:
+        names = ", ".join(s.name for s in capture.sources)
+        looks = f" ({report.looks_like})" if report.looks_like else ""
+        print(f"xac1 decode: {names}: no line data found in this {capture.format} capture: nothing to "
+              f"decode{looks}", file=sys.stderr)
+        return 2
+    if report.total_problems or report.unread_bytes or report.unread_lines:
+        print(f"xac1 decode: {capture.format}: {report.summary()}; the rest was decoded", file=sys.stderr)
+    return 1 if violations or report.total_problems else 0
+
+
+def _print_problems(report: Report, at_most: int | None = None) -> None:
+    shown = report.problems[:at_most]
+    for problem in shown:
+        print(f"xac1 decode: {problem}", file=sys.stderr)
+    if report.total_problems > len(shown):
+        print(f"xac1 decode: ... and {report.total_problems - len(shown)} more problem(s)", file=sys.stderr)
+
+
+def _one_sided(record: Any) -> Any:
+    """A record of a one-direction capture, keeping only the violations one frame's bytes show (the
+    sender's duty, docs/protocol.md "Violation codes"): the others need the missing direction."""
+    if record.type == "timeout":
+        return None
+    keep = tuple(code for code in record.violations if spec.VIOLATION_TABLE[code].duty == spec.SENDER)
+    details = tuple(d for d in record.details if any(d.endswith(f"({code})") for code in keep))
+    changes: dict[str, Any] = {"violations": keep, "details": details}
+    if record.type == "frame":
+        changes.update(reply_to=None, latency_s=None)
+    return replace(record, **changes)
 
 
 class _Filter:
@@ -209,24 +366,51 @@ class _Filter:
         return not self.only_violations or bool(record.violations)
 
 
+
 class _Progress:
-    """A one-line progress bar on stderr, redrawn at most five times a second."""
+    """A progress bar on stderr (``rich.progress``), fed at most five times a second, removed at the
+    end."""
 
     def __init__(self, capture: Capture) -> None:
+        from rich.console import Console
+        from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn
+
         self.capture = capture
         self.last = 0.0
+        self.bar = Progress(TextColumn("decoding"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                            DownloadColumn(), console=Console(stderr=True), transient=True,
+                            refresh_per_second=5)
+        self.task = self.bar.add_task("decoding", total=max(1, capture.size))
+
+    def __enter__(self) -> _Progress:
+        self.bar.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.update(self.task, completed=self.capture.size)
+        self.bar.stop()
 
     def update(self) -> None:
         now = time.monotonic()
         if now - self.last < 0.2:
             return
         self.last = now
-        size = max(1, self.capture.size)
-        done = min(1.0, self.capture.pos / size)
-        bar = "#" * int(done * 30)
-        sys.stderr.write(f"\rdecoding [{bar:<30}] {done * 100:5.1f}% of {size / 1e6:.1f} MB")
-        sys.stderr.flush()
+        self.bar.update(self.task, completed=min(self.capture.pos, self.capture.size))
 
-    def done(self) -> None:
-        sys.stderr.write("\r" + " " * 60 + "\r")
-        sys.stderr.flush()
+
+class _NoProgress:
+    def __enter__(self) -> _NoProgress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pass
+
+    def update(self) -> None:
+        pass
+
+
+def _progress(capture: Capture) -> _Progress | _NoProgress:
+    """A bar when stderr is a terminal and the capture is large (and its size known), else nothing."""
+    if sys.stderr.isatty() and capture.size >= PROGRESS_MIN_BYTES:
+        return _Progress(capture)
+    return _NoProgress()

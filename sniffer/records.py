@@ -10,6 +10,7 @@ builds them and the views print them.
 from __future__ import annotations
 
 import json
+import math
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
@@ -134,6 +135,7 @@ class TimeoutRecord:
 Record = FrameRecord | JunkRecord | TimeoutRecord
 
 
+_MAX_LATENCY_S = 1e6  # a latency beyond this comes from damaged times and is not counted
 _MAX_WAITING = 4096  # commands the tally remembers while they wait for an answer
 
 
@@ -146,6 +148,8 @@ class LatencyStats:
     _us: Counter[int] = field(default_factory=Counter)
 
     def add(self, seconds: float) -> None:
+        if not math.isfinite(seconds) or abs(seconds) > _MAX_LATENCY_S:
+            return  # a damaged time, not a latency
         self.n += 1
         self._us[round(seconds * 1e6)] += 1
 
@@ -203,7 +207,8 @@ class Tally:
 
     def latency_stats(self) -> dict[str, dict[str, float | int]]:
         """Per command header: count, min, median, max latency in ms."""
-        return {header: self.latencies[header].stats_ms() for header in sorted(self.latencies)}
+        return {header: self.latencies[header].stats_ms() for header in sorted(self.latencies)
+                if self.latencies[header].n}
 
     def summary(self) -> dict[str, Any]:
         ordered = sorted(self.violations.items(), key=lambda kv: list(spec.VIOLATIONS).index(kv[0])

@@ -37,7 +37,10 @@ def show_raw(raw: bytes) -> str:
 def show_time(t: float | None) -> str:
     if t is None:
         return "-" * 12
-    return _dt.datetime.fromtimestamp(t).strftime("%H:%M:%S.%f")[:-3]
+    try:
+        return _dt.datetime.fromtimestamp(t).strftime("%H:%M:%S.%f")[:-3]
+    except (ValueError, OverflowError, OSError):  # NaN, infinite or absurd: a damaged time
+        return f"{'?' + repr(t):>12.12}"
 
 
 class JsonlView:

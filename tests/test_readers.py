@@ -97,16 +97,18 @@ def test_spy_rows_offsets_control_and_empty(tmp_path: Path) -> None:
 
 
 def test_interceptty_original_and_fork_layouts(tmp_path: Path) -> None:
-    """interceptty: ``>`` bytes from the front-pty program (host), ``<`` from the device; the fork's
-    ``[HH:MM SS.uuuuuu]`` stamps, character names and joined lines read the same bytes."""
+    """interceptty: ``<`` bytes the front-pty program (the host) wrote, ``>`` (with a tab) bytes the
+    device answered on the back port; the fork's ``[HH:MM SS.uuuuuu]`` stamps, character names and
+    joined lines read the same bytes."""
     plain = tmp_path / "a.log"
-    plain.write_text("> \t0x30 (0)\n> \t0x52 (R)\n> \t0x56 (V)\n> \t0x0d\n> \t0x0a\n< 0x30 (0)\n"
-                     "< 0x52 (R)\n< 0x56 (V)\n< 0x31 (1)\n< 0x30 (0)\n< 0x30 (0)\n< 0x0d\n< 0x0a\n")
+    plain.write_text("< 0x30 (0)\n< 0x52 (R)\n< 0x56 (V)\n< 0x0d\n< 0x0a\n> \t0x30 (0)\n"
+                     "> \t0x52 (R)\n> \t0x56 (V)\n> \t0x31 (1)\n> \t0x30 (0)\n> \t0x30 (0)\n> \t0x0d\n"
+                     "> \t0x0a\n")
     fork = tmp_path / "b.log"
-    fork.write_text("[10:00 01.000000]> \t30(0):52(R):56(V):0d([CR]):0a([LF])\n"
-                    "[10:00 01.020000]< 0x30 (0)\n                 < 0x52 (R)\n                 < V\n"
-                    "                 < 1\n                 < 0\n                 < 0\n"
-                    "                 < [CR]\n                 < [LF]\n")
+    fork.write_text("[10:00 01.000000]< 30(0):52(R):56(V):0d([CR]):0a([LF])\n"
+                    "[10:00 01.020000]> \t0x30 (0)\n                 > \t0x52 (R)\n"
+                    "                 > \tV\n                 > \t1\n                 > \t0\n"
+                    "                 > \t0\n                 > \t[CR]\n                 > \t[LF]\n")
     want = {"host": b"0RV\r\n", "device": b"0RV100\r\n"}
     a, ra = read(interceptty, plain)
     b, rb = read(interceptty, fork)

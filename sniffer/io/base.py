@@ -1,8 +1,11 @@
 """What every capture reader shares: the source file, the problem report, side naming and time parsing.
 
 How this works: a reader is a generator ``read(src, host_is) -> Iterator[Chunk]``. It pulls lines (or
-bytes) from a ``Source``, which counts the bytes consumed (for a progress bar) and caps line length so a
-binary file fed to a text reader cannot use unbounded memory. Anything it cannot read goes to the
+bytes) from a ``Source``, which opens the file once (a buffered head serves format sniffing, so ``-``,
+pipes and FIFOs work), counts the bytes consumed (for a progress bar) and caps line length so a binary
+file fed to a text reader cannot use unbounded memory. Times pass a ``Clock``: one that is not a number,
+out of range or impossible (``wallclock``: hour 27, day 32) is reported and the bytes keep the previous
+time. Anything it cannot read goes to the
 ``Report`` with the file name and line number, counting the bytes or lines lost, and reading goes on.
 The report keeps the first ``MAX_KEPT`` messages and counts the rest, so memory stays constant whatever
 the file size. ``Sides`` maps the names a format gives its two lines (``>``/``<``, ``TX``/``RX``, a tty
@@ -12,7 +15,12 @@ alias...) to ``host``/``device``, honouring ``--host-is``.
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import os
+import shutil
+import stat
+import sys
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +36,10 @@ class FormatError(Exception):
     """The file cannot be read as the format asked for at all (wrong magic, bad option)."""
 
 
+class WrongFormat(FormatError):
+    """Raised by ``Report.problem`` when ``give_up_after`` problems came before any data."""
+
+
 @dataclass
 class Report:
     """What could not be read, across all files of one decode run."""
@@ -37,6 +49,8 @@ class Report:
     unread_bytes: int = 0
     unread_lines: int = 0
     notes: list[str] = field(default_factory=list)
+    give_up_after: int | None = None  # raise WrongFormat at this many problems (cleared once data comes)
+    looks_like: str = ""  # what the files look like, for the WrongFormat message
 
     def problem(self, where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
         """Record one unreadable spot: ``where`` is ``file:line`` (or ``file@offset``)."""
@@ -46,6 +60,8 @@ class Report:
             self.problems.append(f"{where}: {message}")
         else:
             self.dropped += 1
+        if self.give_up_after is not None and self.total_problems >= self.give_up_after:
+            raise WrongFormat(f"{self.total_problems} problems before any data")
 
     def note(self, message: str) -> None:
         """A remark about the whole capture (lossy format, missing sample rate...), said once."""
@@ -68,18 +84,68 @@ class Report:
         return f"could not read {' and '.join(parts)} ({self.total_problems} problem(s))"
 
 
+STDIN: Final = "-"  # the file name that means standard input
+HEAD_BYTES: Final = 8192  # bytes sniffed for the format
+
+
 class Source:
-    """One capture file opened for reading, with a byte counter for progress."""
+    """One capture file opened once for reading, with a byte counter for progress.
+
+    ``path`` may be a regular file, a FIFO, a character device such as ``/dev/stdin`` or ``-`` (standard
+    input). The file is opened once: ``head()`` buffers its first bytes for format sniffing and reading
+    starts over from them, so a pipe works. A reader that needs a second pass (sigrok's instances) calls
+    ``reopen()``: a regular file is opened again, anything else is first spooled to a temporary file."""
 
     def __init__(self, path: str | os.PathLike[str], report: Report, *,
                  name: str | None = None) -> None:
         self.path = Path(path)
-        self.name = name or str(path)
+        self.name = name or ("<stdin>" if str(path) == STDIN else str(path))
         self.report = report
-        self.size = self.path.stat().st_size
-        self._f: IO[bytes] = open(self.path, "rb")  # noqa: SIM115 - closed by close()/__exit__
+        if str(path) == STDIN:
+            self._f: IO[bytes] = os.fdopen(os.dup(sys.stdin.fileno()), "rb")
+        else:
+            self._f = open(self.path, "rb")  # noqa: SIM115 - closed by close()/__exit__
+        mode = os.fstat(self._f.fileno()).st_mode
+        self.regular = stat.S_ISREG(mode)
+        self.size = os.fstat(self._f.fileno()).st_size if self.regular else 0
+        self._head = b""
+        self._buffered = 0  # bytes of _head not yet consumed (they are at its end)
+        self._spool: IO[bytes] | None = None
         self.pos = 0
         self.unterminated: int | None = None  # number of a last line read that has no line end
+
+    def head(self, n: int = HEAD_BYTES) -> bytes:
+        """The first ``n`` bytes (or fewer), without consuming them; only before reading starts."""
+        if self.pos == 0 and len(self._head) < n:
+            more = _read_full(self._f, n - len(self._head))
+            self._head += more
+            self._buffered += len(more)
+        return self._head[:n]
+
+    def _raw_read(self, n: int) -> bytes:
+        if self._buffered:
+            start = len(self._head) - self._buffered
+            data = self._head[start:start + n]
+            self._buffered -= len(data)
+            if len(data) == n:
+                return data
+            return data + self._f.read(n - len(data))
+        return self._f.read(n)
+
+    def _raw_readline(self, limit: int) -> bytes:
+        if self._buffered:
+            start = len(self._head) - self._buffered
+            end = self._head.find(b"\n", start, start + limit)
+            if end >= 0:
+                data = self._head[start:end + 1]
+                self._buffered -= len(data)
+                return data
+            data = self._head[start:start + limit]
+            self._buffered -= len(data)
+            if len(data) == limit:
+                return data
+            return data + self._f.readline(limit - len(data))
+        return self._f.readline(limit)
 
     def lines(self) -> Iterator[tuple[int, str]]:
         """(line number, text without its line end) for each line; bytes read as latin-1 so no byte is
@@ -87,7 +153,7 @@ class Source:
         number = 0
         continued = False
         while True:
-            raw = self._f.readline(MAX_LINE)
+            raw = self._raw_readline(MAX_LINE)
             if not raw:
                 return
             self.pos += len(raw)
@@ -98,12 +164,35 @@ class Source:
             yield number, raw.decode("latin-1").rstrip("\r\n")
 
     def read(self, n: int) -> bytes:
-        data = self._f.read(n)
+        data = self._raw_read(n)
         self.pos += len(data)
         return data
 
+    def reopen(self) -> IO[bytes]:
+        """A new, independent reader of the whole file from its first byte (close it after use). A pipe
+        or FIFO is spooled to a temporary file first (before anything was read from it)."""
+        if self.regular:
+            return open(self.path, "rb")
+        if self._spool is None:
+            if self.pos:
+                raise RuntimeError("reopen() of a pipe must come before reading from it")
+            spool = tempfile.NamedTemporaryFile(prefix="xac1-decode-")  # noqa: SIM115 - closed by close()
+            spool.write(self._head)
+            shutil.copyfileobj(self._f, spool)
+            spool.flush()
+            self.size = spool.tell()
+            self._f.close()
+            spool.seek(len(self._head))
+            self._f = spool
+            self._spool = spool
+        return open(self._spool.name, "rb")
+
     def where(self, line: int) -> str:
         return f"{self.name}:{line}"
+
+    def at(self, offset: int) -> str:
+        """``file:offset`` of a byte offset (binary formats)."""
+        return f"{self.name}:{offset}"
 
     def check_end(self) -> None:
         """After reading a text capture: a last line with no line end means the file was cut while
@@ -124,11 +213,34 @@ class Source:
         self.close()
 
 
-def head_lines(path: str | os.PathLike[str], n: int = 20, max_bytes: int = 8192) -> list[str]:
-    """The first lines of a file for content sniffing (latin-1, at most ``max_bytes`` read)."""
+def _read_full(f: IO[bytes], n: int) -> bytes:
+    """Up to ``n`` bytes, reading again after a short read (a pipe delivers in pieces) until end of file."""
+    parts = []
+    while n > 0:
+        data = f.read(n)
+        if not data:
+            break
+        parts.append(data)
+        n -= len(data)
+    return b"".join(parts)
+
+
+def head_lines(path: str | os.PathLike[str], n: int = 20, max_bytes: int = HEAD_BYTES) -> list[str]:
+    """The first lines of a regular file for content sniffing (latin-1, at most ``max_bytes`` read)."""
     with open(path, "rb") as f:
         data = f.read(max_bytes)
     return data.decode("latin-1").splitlines()[:n]
+
+
+def shown(text: str | bytes, limit: int = 60) -> str:
+    """A short printable quote of what was read (non-ASCII escaped): never raw binary on a terminal."""
+    if isinstance(text, bytes):
+        text = text.decode("latin-1")
+    odd = sum(1 for c in text[:256] if not " " <= c <= "~" and c != "\t")
+    if odd * 4 > min(len(text), 256):
+        return f"{len(text)} byte(s) of binary data"
+    cut = text[:limit]
+    return ascii(cut) + ("..." if len(text) > limit else "")
 
 
 class Sides:
@@ -194,12 +306,49 @@ def _matches(name: str, host_is: str) -> bool:
     return name == host_is or os.path.basename(name) == host_is
 
 
+# Plausible times: unix seconds up to 2106 (pcap's 32-bit seconds), and relative times (seconds since a
+# capture or the day started, sample numbers over a rate) down to minus a year (a Saleae pre-trigger).
+MIN_TIME: Final = -366 * 86400.0
+MAX_TIME: Final = float(1 << 32)
+
+
+def time_problem(t: float) -> str | None:
+    """Why ``t`` (seconds) cannot be a capture time, or None when it can."""
+    if not math.isfinite(t):
+        return f"time {t!r} is not a number of seconds"
+    if not MIN_TIME <= t < MAX_TIME:
+        return f"time {t!r} s is out of range (expected {MIN_TIME:.0f} to {MAX_TIME:.0f} s)"
+    return None
+
+
+class Clock:
+    """Checks the times a reader reads: a bad one is reported and replaced by the last good one, so the
+    bytes it stamps are kept in order."""
+
+    def __init__(self, report: Report) -> None:
+        self.report = report
+        self.last: float | None = None
+
+    def check(self, t: float | None, where: str) -> float | None:
+        if t is None:
+            return None
+        why = time_problem(t)
+        if why is not None:
+            self.report.problem(where, f"{why}; the bytes are kept with the previous time")
+            return self.last
+        self.last = t
+        return t
+
+
 def wallclock(date: str, clock: str) -> float:
     """Unix seconds of a zone-less ``YYYY-MM-DD``/``YYYY/MM/DD`` date and ``HH:MM:SS[.ffffff]`` time,
     read as local time (the zone the tool printed in is not recorded; local time keeps the clock
-    the log shows)."""
-    y, m, d = (int(x) for x in date.replace("/", "-").split("-"))
-    hms, _, frac = clock.partition(".")
-    hh, mm, ss = (int(x) for x in hms.split(":"))
-    base = _dt.datetime(y, m, d, hh, mm, ss).timestamp()
-    return base + (int(frac) / 10 ** len(frac) if frac else 0.0)
+    the log shows). An impossible date or time (hour 27, day 32) is a ``ValueError`` saying so."""
+    try:
+        y, m, d = (int(x) for x in date.replace("/", "-").split("-"))
+        hms, _, frac = clock.partition(".")
+        hh, mm, ss = (int(x) for x in hms.split(":"))
+        base = _dt.datetime(y, m, d, hh, mm, ss).timestamp()
+        return base + (int(frac[:12]) / 10 ** len(frac[:12]) if frac else 0.0)
+    except (ValueError, OverflowError, OSError) as exc:
+        raise ValueError(f"impossible date or time {shown(date, 12)} {shown(clock, 24)} ({exc})") from None

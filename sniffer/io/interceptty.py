@@ -1,15 +1,16 @@
 """Reader for interceptty dumps, the original and its fork with ``-T`` timestamps.
 
-How this works: the original prints one byte a line: ``< 0x30 (0)`` for a byte from the back device
-(the real serial port) and ``> \\t0x30 (0)`` for a byte written by the program on the front pty; the
-character in parentheses appears for printable bytes only. The fork may prefix the first line of each
-read with ``[HH:MM SS.uuuuuu]`` (``-T``; blanks on the following lines of the same read), may print the
-character as a name (``[CR]``, ``[LF]``, ``' '``), and with an end-of-line character joins a read's
+How this works: the original prints one byte a line: ``< 0x30 (0)`` for a byte written by the program
+on the front pty (its main loop dumps those with direction flag 0) and ``> \\t0x30 (0)`` for a byte read
+from the back device, the real serial port (flag 1, printed with a tab); the character in parentheses
+appears for printable bytes only. The fork may prefix the first line of each read with
+``[HH:MM SS.uuuuuu]`` (``-T``; blanks on the following lines of the same read), may print the character
+as a name (``[CR]``, ``[LF]``, ``' '``), and with an end-of-line character joins a read's
 bytes on one line (``< 30(0):52(R):0d([CR]):0a([LF])``) or prints characters only. A ``-T`` time has no
 date: it becomes seconds since midnight.
 
-Host side default: ``>`` (the program on interceptty's front pty is the host; the device is on the
-back port).
+Host side default: ``<`` (the program on interceptty's front pty is the host software; the device is
+on the back port, its bytes are ``>``). A ``-T`` time that is no time of day (hour 27) is reported.
 """
 
 from __future__ import annotations
@@ -20,11 +21,11 @@ from typing import Final
 
 from xac1_proto.chunk import Chunk
 
-from .base import Sides, Source
+from .base import Clock, Sides, Source, shown
 
 FORMAT: Final = "interceptty"
 DESCRIPTION: Final = "interceptty (and its -T fork) byte dump"
-HOST_DEFAULT: Final = ">"
+HOST_DEFAULT: Final = "<"
 SUFFIXES: Final = (".interceptty",)
 
 _LINE: Final = re.compile(r"(?:\[(\d\d):(\d\d) (\d\d(?:\.\d+)?)\]|\s*)([<>]) \t?(.*)")
@@ -65,21 +66,27 @@ def _items(text: str) -> bytes | None:
 
 
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    sides = Sides(FORMAT, host_is, (">", "<"))
+    sides = Sides(FORMAT, host_is, ("<", ">"))
     report = src.report
     pending: Chunk | None = None
     t: float | None = None
+    clock = Clock(report)
     for number, line in src.lines():
         if not line.strip():
             continue
         m = _LINE.fullmatch(line)
         data = _items(m.group(5)) if m else None
         if m is None or data is None:
-            report.problem(src.where(number), f"not an interceptty byte line: {line[:60]!r}", nlines=1)
+            report.problem(src.where(number), f"not an interceptty byte line: {shown(line)}", nlines=1)
             continue
         stamped = m.group(1) is not None
         if stamped:
-            t = int(m.group(1)) * 3600 + int(m.group(2)) * 60 + float(m.group(3))
+            hh, mm, ss = int(m.group(1)), int(m.group(2)), float(m.group(3))
+            if hh > 23 or mm > 59 or ss >= 61:
+                report.problem(src.where(number), f"-T time {hh:02d}:{mm:02d} {m.group(3)} is no time of "
+                                                  f"day; the bytes are kept with the previous time")
+            else:
+                t = clock.check(hh * 3600 + mm * 60 + ss, src.where(number))
         d = sides.direction(m.group(4))
         assert d is not None
         if pending is not None and pending.dir == d and not stamped and len(pending.data) < 4096:

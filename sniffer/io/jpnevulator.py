@@ -21,7 +21,7 @@ from typing import Final
 
 from xac1_proto.chunk import Chunk
 
-from .base import Sides, Source, wallclock
+from .base import Clock, Sides, Source, shown, wallclock
 
 FORMAT: Final = "jpnevulator"
 DESCRIPTION: Final = "jpnevulator --read --timing-print output"
@@ -32,6 +32,7 @@ _TIMING: Final = re.compile(r"(\d{4}-\d\d-\d\d) (\d\d:\d\d:\d\d\.\d+):(?: (.*))?
 _COUNT: Final = re.compile(r"[0-9A-Fa-f]{8}")
 _HEX: Final = re.compile(r"(?:[0-9A-Fa-f]{2} ?)+")
 _SINGLE: Final = "(the only tty)"
+_SPILL: Final = 1 << 12  # bytes of one burst held before they are handed on
 
 
 def sniff(head: list[str]) -> int:
@@ -58,6 +59,7 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     pending: Chunk | None = None
     side: str | None = None
     t: float | None = None
+    clock = Clock(report)
     for number, raw in src.lines():
         line = raw
         while line:
@@ -68,14 +70,18 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 if data is not None and side is not None and pending is not None:
                     pending = Chunk(pending.t, pending.dir, pending.data + data)
                 elif head.strip():
-                    report.problem(src.where(number), f"cannot read {head[:40]!r}", nlines=1)
+                    report.problem(src.where(number), f"cannot read {shown(head)}", nlines=1)
                 continue
             if m:
                 if pending is not None and pending.data:
                     yield pending
                 pending = None
                 side = m.group(3).strip() if m.group(3) and m.group(3).strip() else _SINGLE
-                t = wallclock(m.group(1), m.group(2))
+                try:
+                    t = clock.check(wallclock(m.group(1), m.group(2)), src.where(number))
+                except ValueError as exc:
+                    report.problem(src.where(number), f"{exc}; the bytes are kept with the previous time")
+                    t = clock.last
                 d = sides.direction(side)
                 if d is None:
                     report.problem(src.where(number), f"a third tty {side!r} (this reader takes two "
@@ -85,7 +91,7 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 break
             data = _data_bytes(line)
             if data is None:
-                report.problem(src.where(number), f"not a jpnevulator timing or data line: {line[:60]!r}",
+                report.problem(src.where(number), f"not a jpnevulator timing or data line: {shown(line)}",
                                nlines=1)
             elif side is None:
                 report.problem(src.where(number), "data before any timing line (run jpnevulator with "
@@ -94,6 +100,9 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                 report.problem(src.where(number), f"bytes of skipped tty {side!r}", nbytes=len(data))
             else:
                 pending = Chunk(pending.t, pending.dir, pending.data + data)
+                if len(pending.data) >= _SPILL:  # bounded memory on a huge burst
+                    yield pending
+                    pending = Chunk(pending.t, pending.dir, b"")
             break
     if pending is not None and pending.data:
         yield pending

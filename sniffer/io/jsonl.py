@@ -17,7 +17,7 @@ from typing import Final
 from xac1_proto.chunk import Chunk
 from xac1_proto.recording import is_recording, read_recording
 
-from .base import Source
+from .base import Clock, Source, shown
 
 FORMAT: Final = "jsonl"
 DESCRIPTION: Final = "our JSON lines: a raw recording or decoded output"
@@ -53,9 +53,19 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
 
 def _recording(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
     problems: list[str] = []
+    clock = Clock(src.report)
     for chunk in read_recording((text for _n, text in lines), src.name, problems):
-        yield chunk
         _move(src, problems)
+        t, error = chunk.t, chunk.error
+        if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))):
+            src.report.problem(src.name, f"chunk time {shown(str(t), 20)} is not a number; the bytes are "
+                                         f"kept with the previous time")
+            t = clock.last
+        else:
+            t = clock.check(t, src.name)
+        if error is not None and not isinstance(error, str):
+            error = shown(str(error), 40)
+        yield Chunk(t, chunk.dir, chunk.data, error)
     _move(src, problems)
 
 
@@ -69,6 +79,7 @@ def _move(src: Source, problems: list[str]) -> None:
 
 def _decoded(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
     report = src.report
+    clock = Clock(report)
     for number, text in lines:
         if not text.strip():
             continue
@@ -80,7 +91,14 @@ def _decoded(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
             if kind not in ("frame", "junk") or obj.get("dir") not in ("host", "device"):
                 raise ValueError(f"not a frame or junk record (type {kind!r})")
             errors = obj.get("line_errors") or []
-            yield Chunk(obj.get("t"), obj["dir"], bytes.fromhex(obj["raw"]), errors[0] if errors else None)
+            t = obj.get("t")
+            if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))):
+                raise ValueError(f"time {shown(str(t), 20)} is not a number")
+            error = errors[0] if isinstance(errors, list) and errors else None
+            if error is not None and not isinstance(error, str):
+                raise ValueError("line_errors must be a list of strings")
+            t = clock.check(float(t), src.where(number)) if t is not None else None
+            yield Chunk(t, obj["dir"], bytes.fromhex(obj["raw"]), error)
         except (ValueError, KeyError, TypeError, AttributeError) as exc:
             report.problem(src.where(number), f"malformed decoded record ({exc})", nlines=1)
 

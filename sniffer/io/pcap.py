@@ -8,8 +8,11 @@ END) carry bytes the capturing port sent (``TX``), 0x02/0x04 (DATA_RX_START/END)
 (``RX``); 0x07 FRAMING_ERROR and 0x08 PARITY_ERROR mark their bytes as damaged (on the side of the
 last data packet); other events carry no data. USER0 (147) is the older way such files were written
 and is read the same. The reader walks pcap records or pcapng blocks (SHB, IDB, EPB, SPB, either byte
-order, any if_tsresol) one at a time; a truncated record or block ends the file with a message saying
-how many bytes were lost.
+order, any if_tsresol) one at a time and checks each against the file and itself: a length past the
+end of the file or implausible (pcapng: not repeated at the block's end), a body shorter than its fixed
+fields, a captured length larger than its block, a time out of range. Each is reported as
+``file:offset (record/block N): what was wrong`` and reading resumes at the next plausible record or
+block (a bounded look-ahead), so the packets after damage are kept.
 
 Host side default: ``TX`` (the capturing port sent the commands). The writer (``PcapngWriter``) writes
 host bytes as TX and device bytes as RX, so its files read back with the default.
@@ -19,12 +22,13 @@ from __future__ import annotations
 
 import os
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from functools import partial
 from typing import IO, Final
 
 from xac1_proto.chunk import HOST, Chunk, Direction
 
-from .base import FormatError, Sides, Source
+from .base import Clock, FormatError, Sides, Source
 
 FORMAT: Final = "pcap"
 DESCRIPTION: Final = "pcap / pcapng with LINKTYPE_RTAC_SERIAL (250) or USER0 (147)"
@@ -45,6 +49,9 @@ _PCAP_MAGIC: Final = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">
 _SHB: Final = b"\x0a\x0d\x0d\x0a"
 _BLOCK_EPB, _BLOCK_SPB, _BLOCK_IDB = 6, 3, 1
 _MAX_RECORD: Final = 1 << 20
+_RESYNC_MAX: Final = 1 << 16  # longest record or block taken as a resynchronisation point
+_SCAN: Final = 1 << 18  # look-ahead searched for the next record after damage
+_READ: Final = 1 << 16
 
 
 def sniff_bytes(first: bytes) -> int:
@@ -52,14 +59,16 @@ def sniff_bytes(first: bytes) -> int:
 
 
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    magic = src.read(4)
+    buf = _Buffer(src)
+    magic = buf.peek(4)
     if magic in _PCAP_MAGIC:
-        packets = _pcap_packets(src, magic)
+        packets = _pcap_packets(src, buf, magic)
     elif magic == _SHB:
-        packets = _pcapng_packets(src)
+        packets = _pcapng_packets(src, buf)
     else:
         raise FormatError(f"{src.name}: not a pcap or pcapng file (first bytes {magic.hex(' ')})")
     sides = Sides("pcap", host_is, ("TX", "RX"))
+    clock = Clock(src.report)
     last: Direction | None = None
     for where, t, payload in packets:
         if len(payload) < RTAC_HEADER.size:
@@ -68,8 +77,12 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
             continue
         secs, usecs, event, _lines, _footer = RTAC_HEADER.unpack_from(payload)
         data = payload[RTAC_HEADER.size:]
-        if secs or usecs:
+        if usecs >= 1_000_000:
+            src.report.problem(where, f"RTAC header microseconds {usecs} is not below 1000000; the "
+                                      f"packet's own time is used")
+        elif secs or usecs:
             t = secs + usecs / 1e6
+        t = clock.check(t, where)
         if event in TX_EVENTS or event in RX_EVENTS:
             d = sides.direction("TX" if event in TX_EVENTS else "RX")
             assert d is not None
@@ -83,109 +96,266 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                                       f"not line data; skipped", nbytes=len(data))
 
 
-def _need(src: Source, n: int, what: str) -> bytes | None:
-    data = src.read(n)
-    if len(data) < n:
-        if data:
-            src.report.problem(f"{src.name}@{src.pos - len(data)}", f"file ends inside {what}: "
-                                                                  f"{n - len(data)} byte(s) missing",
-                               nbytes=len(data))
-        return None
-    return data
+class _Buffer:
+    """A look-ahead window over the file: ``peek`` without consuming, ``skip`` to consume; ``offset`` is
+    the file offset of the window's first byte. Memory: the largest peek (about one record)."""
+
+    def __init__(self, src: Source) -> None:
+        self.src = src
+        self.data = bytearray()
+        self.offset = 0
+
+    def peek(self, n: int) -> bytes:
+        while len(self.data) < n:
+            more = self.src.read(max(n - len(self.data), _READ))
+            if not more:
+                break
+            self.data += more
+        return bytes(self.data[:n])
+
+    def skip(self, n: int) -> None:
+        self.peek(n)
+        n = min(n, len(self.data))
+        del self.data[:n]
+        self.offset += n
 
 
-def _pcap_packets(src: Source, magic: bytes) -> Iterator[tuple[str, float | None, bytes]]:
+def _pcap_packets(src: Source, buf: _Buffer, magic: bytes) -> Iterator[tuple[str, float | None, bytes]]:
     order, unit = _PCAP_MAGIC[magic]
-    header = _need(src, 20, "the pcap file header")
-    if header is None:
+    header = buf.peek(24)
+    if len(header) < 24:
+        src.report.problem(src.at(0), f"the file ends inside the 24-byte pcap file header "
+                                      f"({len(header)} byte(s))", nbytes=len(header))
         return
-    linktype = struct.unpack(order + "HHiIII", header)[5] & 0x0FFFFFFF
+    linktype = struct.unpack(order + "HHiIII", header[4:])[5] & 0x0FFFFFFF
     if linktype not in SERIAL_LINKTYPES:
-        raise FormatError(f"{src.name}: pcap link type {linktype} is not serial (expected "
+        raise FormatError(f"{src.at(20)}: pcap link type {linktype} is not serial (expected "
                           f"{LINKTYPE_RTAC_SERIAL} RTAC serial or {LINKTYPE_USER0} USER0)")
+    buf.skip(24)
+    ticks = round(1 / unit)
     n = 0
+    last_sec: int | None = None
     while True:
-        rec = _need(src, 16, "a record header")
-        if rec is None:
+        off = buf.offset
+        rec = buf.peek(16)
+        if not rec:
             return
         n += 1
-        sec, frac, incl, _orig = struct.unpack(order + "IIII", rec)
+        where = f"{src.at(off)} (record {n})"
+        if len(rec) < 16:
+            src.report.problem(where, f"the file ends inside a record header: {16 - len(rec)} byte(s) "
+                                      f"missing of 16", nbytes=len(rec))
+            return
+        sec, frac, incl, orig = struct.unpack(order + "IIII", rec)
+        why = None
         if incl > _MAX_RECORD:
-            src.report.problem(f"{src.name} record {n}", f"record length {incl} is not plausible: the file "
-                                                        f"is corrupt from here on",
-                               nbytes=src.size - src.pos)
-            return
-        data = _need(src, incl, f"record {n}")
-        if data is None:
-            return
-        yield f"{src.name} record {n}", sec + frac * unit, data
+            why = f"corrupt length {incl} (expected at most {_MAX_RECORD})"
+        elif frac >= ticks:
+            why = f"corrupt time: fraction {frac} (expected below {ticks})"
+        else:
+            whole = buf.peek(16 + incl)
+            if len(whole) < 16 + incl:
+                left = len(whole) - 16
+                if _pcap_resync(buf.offset, off + 1, buf.peek(_SCAN), order=order, ticks=ticks,
+                                last_sec=last_sec) is None:
+                    src.report.problem(where, f"corrupt length {incl}: the record runs "
+                                              f"{incl - left} byte(s) past the end of the file ({left} "
+                                              f"left; or the file was cut short inside it)",
+                                       nbytes=len(whole))
+                    buf.skip(len(whole))
+                    return
+                why = (f"corrupt length {incl}: the record runs {incl - left} byte(s) past the end of "
+                       f"the file")
+        if why is not None:
+            if not _skip_damage(src, buf, where, why, off + 1,
+                                partial(_pcap_resync, order=order, ticks=ticks, last_sec=last_sec), "record"):
+                return
+            n -= 1
+            continue
+        last_sec = sec
+        data = buf.peek(16 + incl)[16:]
+        buf.skip(16 + incl)
+        yield where, sec + frac * unit, data
 
 
-def _pcapng_packets(src: Source) -> Iterator[tuple[str, float | None, bytes]]:
+def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
+                 scan: Callable[[int, int, bytes], int | None], unit: str) -> bool:
+    """Report damage found at ``where`` and move to the next plausible record or block at or after
+    ``start`` (True), or to the end of the file when there is none (False). ``scan(base, start,
+    window)`` finds one in a look-ahead window; the window slides on, so memory stays bounded."""
+    off = buf.offset
+    while True:
+        window = buf.peek(_SCAN)
+        found = scan(buf.offset, start, window)
+        if found is not None:
+            lost = found - off
+            src.report.problem(where, f"{why}; {lost} byte(s) skipped to the next plausible {unit}",
+                               nbytes=lost)
+            buf.skip(found - buf.offset)
+            return True
+        if len(window) < _SCAN:  # the end of the file is in the window
+            buf.skip(len(window))
+            lost = buf.offset - off
+            src.report.problem(where, f"{why}; nothing plausible follows: the rest of the file ({lost} "
+                                      f"byte(s)) is skipped", nbytes=lost)
+            return False
+        buf.skip(len(window) - _RESYNC_MAX - 32)
+        start = buf.offset
+
+
+def _pcap_resync(base: int, start: int, window: bytes, *, order: str, ticks: int,
+                 last_sec: int | None) -> int | None:
+    """The file offset of the next plausible pcap record at or after ``start`` in ``window`` (which
+    starts at file offset ``base``): a sane fraction and length, a time near the last good one, and
+    either the end of the window or another sane record header right after it."""
+    for p in range(start - base, len(window) - 15):
+        sec, frac, incl, orig = struct.unpack_from(order + "IIII", window, p)
+        if frac >= ticks or incl > _RESYNC_MAX or incl > orig or incl < RTAC_HEADER.size:
+            continue
+        if last_sec is not None and abs(sec - last_sec) > 86400:
+            continue
+        nxt = p + 16 + incl
+        if nxt > len(window):
+            continue
+        if nxt == len(window) or (nxt + 16 <= len(window) and
+                                  _sane_pcap_header(window[nxt:nxt + 16], order, ticks, sec)):
+            return base + p
+    return None
+
+
+def _sane_pcap_header(rec: bytes, order: str, ticks: int, near: int) -> bool:
+    sec, frac, incl, orig = struct.unpack(order + "IIII", rec)
+    return frac < ticks and incl <= min(orig, _RESYNC_MAX) and abs(sec - near) <= 86400
+
+
+def _pcapng_packets(src: Source, buf: _Buffer) -> Iterator[tuple[str, float | None, bytes]]:
     order = "<"
     interfaces: list[tuple[int, float]] = []  # (linktype, seconds per timestamp unit)
     n = 0
     warned: set[int] = set()
-    type_raw: bytes | None = _SHB  # read() consumed the first block's type
     while True:
-        if type_raw is None:
-            type_raw = _need(src, 4, "a block header")
-            if type_raw is None:
-                return
-        if type_raw == _SHB:
-            head = _need(src, 8, "a section header")  # block length, byte-order magic
-            if head is None:
-                return
-            order = {b"\x4d\x3c\x2b\x1a": "<", b"\x1a\x2b\x3c\x4d": ">"}.get(head[4:], "")
-            if not order:
-                raise FormatError(f"{src.name}: pcapng section header with an unknown byte-order magic "
-                                  f"{head[4:].hex(' ')}")
-            total = struct.unpack(order + "I", head[:4])[0]
-            if total < 28 or total % 4 or total > _MAX_RECORD or _need(src, total - 12, "a section "
-                                                                                    "header") is None:
-                return
-            interfaces, type_raw = [], None
-            continue
-        block_type = struct.unpack(order + "I", type_raw)[0]
-        type_raw = None
-        raw_total = _need(src, 4, "a block header")
-        if raw_total is None:
+        off = buf.offset
+        head = buf.peek(12)
+        if not head:
             return
-        total = struct.unpack(order + "I", raw_total)[0]
-        if total < 12 or total % 4 or total > _MAX_RECORD:
-            src.report.problem(f"{src.name}@{src.pos - 8}", f"block length {total} is not plausible: the "
-                                                           f"file is corrupt from here on",
-                               nbytes=src.size - src.pos + 8)
-            return
-        body = _need(src, total - 8, f"block {n + 1}")
-        if body is None:
-            return
-        body = body[:-4]
         n += 1
-        where = f"{src.name} block {n}"
-        if block_type == _BLOCK_IDB:
-            linktype = struct.unpack(order + "H", body[:2])[0]
-            interfaces.append((linktype, _tsresol(body[8:], order)))
-        elif block_type in (_BLOCK_EPB, _BLOCK_SPB):
-            if block_type == _BLOCK_EPB:
-                iface, hi, lo, cap, _orig = struct.unpack(order + "IIIII", body[:20])
-                data = body[20:20 + cap]
+        where = f"{src.at(off)} (block {n})"
+        if len(head) < 12:
+            src.report.problem(where, f"the file ends inside a block header: {12 - len(head)} byte(s) "
+                                      f"missing of 12", nbytes=len(head))
+            return
+        is_shb = head[:4] == _SHB
+        why = None
+        if is_shb:
+            bom = {b"\x4d\x3c\x2b\x1a": "<", b"\x1a\x2b\x3c\x4d": ">"}.get(head[8:12])
+            if bom is None:
+                why = f"section header with an unknown byte-order magic {head[8:12].hex(' ')}"
             else:
-                iface, hi, lo = 0, 0, 0
-                data = body[4:]
-            if iface >= len(interfaces):
-                src.report.problem(where, f"packet on undeclared interface {iface}", nbytes=len(data))
+                order = bom
+        block_type, total = struct.unpack(order + "II", head[:8])
+        if why is None:
+            why = _bad_block_length(total, 28 if is_shb else 12)
+        block = b""
+        if why is None:
+            block = buf.peek(total)
+            if len(block) < total:
+                if _pcapng_resync(buf.offset, off + 4, buf.peek(_SCAN), order=order) is None:
+                    src.report.problem(where, f"the file ends inside block {n}: its length {total} runs "
+                                              f"{total - len(block)} byte(s) past the end (the file was "
+                                              f"cut short, or the length is corrupt)", nbytes=len(block))
+                    buf.skip(len(block))
+                    return
+                why = (f"corrupt block length {total}: the block runs {total - len(block)} byte(s) past "
+                       f"the end of the file")
+            elif struct.unpack(order + "I", block[-4:])[0] != total:
+                why = (f"block length {total} at its start but {struct.unpack(order + 'I', block[-4:])[0]} "
+                       f"at its end: a corrupt length or a damaged block")
+        if why is not None:
+            if not _skip_damage(src, buf, where, why, off + 4,
+                                partial(_pcapng_resync, order=order), "block"):
+                return
+            n -= 1
+            continue
+        buf.skip(total)
+        body = block[8:-4]
+        if is_shb:
+            interfaces = []
+            continue
+        packet = _packet(src, where, order, block_type, body, interfaces, warned)
+        if packet is not None:
+            yield packet
+
+
+def _bad_block_length(total: int, least: int) -> str | None:
+    if total < least or total % 4 or total > _MAX_RECORD:
+        return (f"block length {total} is not plausible (expected a multiple of 4 from {least} to "
+                f"{_MAX_RECORD})")
+    return None
+
+
+def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int | None:
+    """The file offset of the next whole pcapng block at or after ``start`` in ``window`` (which starts
+    at file offset ``base``; blocks are 4-byte aligned): a plausible length repeated at its end."""
+    first = start - base
+    first += -first % 4
+    for p in range(first, len(window) - 11, 4):
+        is_shb = window[p:p + 4] == _SHB
+        orders = ("<", ">") if is_shb else (order,)
+        for o in orders:
+            total = struct.unpack_from(o + "I", window, p + 4)[0]
+            if total > _RESYNC_MAX or _bad_block_length(total, 28 if is_shb else 12) is not None:
                 continue
-            linktype, unit = interfaces[iface]
-            if linktype not in SERIAL_LINKTYPES:
-                if iface not in warned:
-                    warned.add(iface)
-                    src.report.problem(where, f"interface {iface} has link type {linktype}, not serial "
-                                              f"(250/147): its packets are skipped")
-                src.report.unread_bytes += len(data)
-                continue
-            t = ((hi << 32) | lo) * unit if block_type == _BLOCK_EPB else None
-            yield where, t, data
+            if p + total <= len(window) and struct.unpack_from(o + "I", window, p + total - 4)[0] == total:
+                return base + p
+    return None
+
+
+def _packet(src: Source, where: str, order: str, block_type: int, body: bytes,
+            interfaces: list[tuple[int, float]], warned: set[int]) -> tuple[str, float | None, bytes] | None:
+    """The packet of one pcapng block (None for a block that carries none, or a damaged one: reported)."""
+    report = src.report
+    if block_type == _BLOCK_IDB:
+        if len(body) < 8:
+            report.problem(where, f"interface description block body of {len(body)} byte(s), shorter than "
+                                  f"its 8 fixed bytes: interface {len(interfaces)} is unusable")
+            interfaces.append((-1, 1e-6))
+            return None
+        linktype = struct.unpack(order + "H", body[:2])[0]
+        interfaces.append((linktype, _tsresol(body[8:], order)))
+        return None
+    if block_type not in (_BLOCK_EPB, _BLOCK_SPB):
+        return None
+    if block_type == _BLOCK_EPB:
+        if len(body) < 20:
+            report.problem(where, f"enhanced packet block body of {len(body)} byte(s), shorter than its 20 "
+                                  f"fixed bytes: skipped", nbytes=len(body))
+            return None
+        iface, hi, lo, cap, _orig = struct.unpack(order + "IIIII", body[:20])
+        if cap > len(body) - 20:
+            report.problem(where, f"captured length {cap} is larger than the {len(body) - 20} byte(s) of "
+                                  f"packet data in its block: skipped", nbytes=len(body) - 20)
+            return None
+        data = body[20:20 + cap]
+    else:
+        if len(body) < 4:
+            report.problem(where, f"simple packet block body of {len(body)} byte(s), shorter than its 4 "
+                                  f"fixed bytes: skipped", nbytes=len(body))
+            return None
+        iface, hi, lo = 0, 0, 0
+        data = body[4:4 + struct.unpack(order + "I", body[:4])[0]]
+    if iface >= len(interfaces):
+        report.problem(where, f"packet on undeclared interface {iface}", nbytes=len(data))
+        return None
+    linktype, unit = interfaces[iface]
+    if linktype not in SERIAL_LINKTYPES:
+        if iface not in warned:
+            warned.add(iface)
+            report.problem(where, f"interface {iface} has link type {linktype}, not serial "
+                                  f"(250/147): its packets are skipped")
+        report.unread_bytes += len(data)
+        return None
+    t = ((hi << 32) | lo) * unit if block_type == _BLOCK_EPB else None
+    return where, t, data
 
 
 def _tsresol(options: bytes, order: str) -> float:

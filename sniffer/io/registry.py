@@ -22,7 +22,7 @@ from typing import Any, Final
 from xac1_proto.chunk import Chunk
 
 from . import interceptty, jpnevulator, jsonl, pcap, raw, saleae, sigrok, socat, spy
-from .base import FormatError, Report, Sides, Source, head_lines
+from .base import HEAD_BYTES, FormatError, Report, Sides, Source, head_lines
 
 READERS: Final[dict[str, ModuleType]] = {m.FORMAT: m for m in (
     jsonl, pcap, socat, spy, interceptty, jpnevulator, saleae, sigrok, raw)}
@@ -62,48 +62,72 @@ class Detection:
     considered: tuple[tuple[str, int], ...]  # every format with a non-zero score, best first
 
 
-def detect(paths: list[str]) -> Detection:
-    """The format of these files, or FormatError naming the formats considered."""
+def _head(p: str | Source) -> tuple[str, Path, bytes]:
+    if isinstance(p, Source):
+        return p.name, p.path, p.head()
+    with open(p, "rb") as f:
+        return p, Path(p), f.read(HEAD_BYTES)
+
+
+def detect(paths: list[str] | list[Source]) -> Detection:
+    """The format of these files, or FormatError naming the formats considered. Given ``Source``s, it
+    sniffs their buffered heads, so a pipe is not consumed."""
     totals: dict[str, list[int]] = {name: [] for name in NAMES}
+    names: list[str] = []
     for p in paths:
-        path = Path(p)
-        with open(path, "rb") as f:
-            first = f.read(8192)
+        name, path, first = _head(p)
+        names.append(name)
         if not first:
-            raise FormatError(f"{p}: the file is empty")
-        for name, module in READERS.items():
-            totals[name].append(_score(module, path, first))
+            raise FormatError(f"{name}: the file is empty")
+        for fmt, module in READERS.items():
+            totals[fmt].append(_score(module, path, first))
     ranked = sorted(((name, min(scores)) for name, scores in totals.items()), key=lambda x: -x[1])
     considered = tuple((n, s) for n, s in ranked if s > 0)
     best = considered[0] if considered else None
     runner_up = considered[1][1] if len(considered) > 1 else 0
     alone = best is not None and len(considered) == 1 and best[0] == "raw"  # only raw fits: take it
     if not alone and (best is None or best[1] < SURE or best[1] - runner_up < 10):
+        if len(names) > 1:
+            per_file = [_best_of(totals, i) for i in range(len(names))]
+            if len({fmt for fmt, _score in per_file}) > 1 and all(sc >= SURE for _fmt, sc in per_file):
+                each = "; ".join(f"{n} is {fmt}" for n, (fmt, _sc) in zip(names, per_file, strict=True))
+                raise FormatError(f"the files are captures of different formats: {each}. Decode each "
+                                  f"on its own (one command per file), or name one format with "
+                                  f"--input-format")
         listed = ", ".join(f"{n} ({s})" for n, s in considered) or "none matched"
-        different = ""
-        if len(paths) > 1:
-            per_file = [max(NAMES, key=lambda n, i=i: totals[n][i])  # type: ignore[misc]
-                        for i in range(len(paths))]
-            if len(set(per_file)) > 1:
-                different = " (the files look like different formats: " + ", ".join(
-                    f"{p}: {n}" for p, n in zip(paths, per_file, strict=True)) + ")"
-        raise FormatError(f"{', '.join(paths)}: cannot tell the capture format{different}; "
-                          f"considered: {listed}. Give --input-format, one of: {', '.join(NAMES)}")
+        raise FormatError(f"{', '.join(names)}: cannot tell the capture format; considered: {listed}. "
+                          f"Give --input-format, one of: {', '.join(NAMES)}")
     assert best is not None  # 'alone' or a sure best
     return Detection(best[0], considered)
+
+
+def _best_of(totals: dict[str, list[int]], i: int) -> tuple[str, int]:
+    """The best format of the i-th file alone, with its score."""
+    fmt = max(NAMES, key=lambda n: totals[n][i])
+    return fmt, totals[fmt][i]
+
+
+def sniff_one(src: Source) -> str | None:
+    """The format one file looks like on its own (a sure score), for messages; None when unsure."""
+    try:
+        return detect([src]).name
+    except FormatError:
+        return None
 
 
 class Capture:
     """The chunks of one or more files of one format, with their sources (for progress) and report."""
 
-    def __init__(self, paths: list[str], fmt: str, host_is: str | None = None,
+    def __init__(self, paths: list[str] | list[Source], fmt: str, host_is: str | None = None,
                  samplerate: float | None = None, report: Report | None = None) -> None:
         if fmt not in READERS:
             raise FormatError(f"unknown input format {fmt!r}; one of: {', '.join(NAMES)}")
         self.format = fmt
         self.module = READERS[fmt]
         self.report = report or Report()
-        self.sources = [Source(p, self.report) for p in paths]
+        self.sources = [p if isinstance(p, Source) else Source(p, self.report) for p in paths]
+        for src in self.sources:
+            src.report = self.report
         self.host_is = host_is
         self.samplerate = samplerate
         if samplerate is not None and fmt != "sigrok":
@@ -165,4 +189,4 @@ def is_readable(path: str) -> bool:
 
 
 __all__ = ["READERS", "NAMES", "Capture", "Detection", "FormatError", "Report", "detect", "describe",
-           "head_lines", "is_readable"]
+           "head_lines", "is_readable", "sniff_one"]

@@ -22,11 +22,12 @@ from __future__ import annotations
 import csv
 import re
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Final
 
 from xac1_proto.chunk import Chunk
 
-from .base import Sides, Source
+from .base import Clock, Sides, Source, shown
 
 FORMAT: Final = "saleae"
 DESCRIPTION: Final = "Saleae Logic async serial export (analyzer CSV or Logic 2 data table)"
@@ -47,6 +48,13 @@ def sniff(head: list[str]) -> int:
     if tuple(first[:2]) == _ANALYZER or tuple(first[:3]) == _TABLE:
         return 95
     return 0
+
+
+def one_direction(head: bytes) -> bool:
+    """Does a file starting with these bytes hold one line direction (the analyzer export) rather than
+    a data table naming its analyzers?"""
+    first = head.decode("latin-1").split("\n", 1)[0]
+    return tuple(c.strip().strip('"').lower() for c in first.split(",")[:2]) == _ANALYZER
 
 
 def value_byte(text: str) -> int | None:
@@ -73,60 +81,94 @@ def _error_text(column: str, value: str) -> str:
     return column if value.lower() in ("error", "1", "true", "x") else f"{column}: {value}"
 
 
-def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
-         multi_file: bool = False) -> Iterator[Chunk]:
-    own = sides is None
-    sides = sides or Sides(FORMAT, host_is)
-    report = src.report
-    lines = src.lines()
+@dataclass(frozen=True)
+class _Layout:
+    """Which export a header names, and where its columns are."""
+
+    header: list[str]
+    table: bool  # Logic 2 data table (else the Logic 1.x analyzer export)
+    error_cols: list[int]
+    time_col: int
+    data_col: int | None
+
+
+def _layout(src: Source, number: int, header_line: str) -> _Layout | None:
     try:
-        number, header_line = next(lines)
-    except StopIteration:
-        report.problem(src.name, "empty file")
-        return
-    header = [c.strip().lower() for c in next(csv.reader([header_line]))]
+        header = [c.strip().lower() for c in next(csv.reader([header_line]))]
+    except (csv.Error, StopIteration):
+        header = []
     if tuple(header[:2]) == _ANALYZER:
         table = False
     elif tuple(header[:3]) == _TABLE:
         table = True
     else:
-        report.problem(src.where(number), f"not a Saleae header: {header_line[:60]!r}", nlines=1)
-        return
-    error_cols = [i for i, c in enumerate(header) if "error" in c]
-    time_col = 2 if table else 0
+        src.report.problem(src.where(number), f"not a Saleae header: {shown(header_line)}", nlines=1)
+        return None
     data_col = header.index("data") if table and "data" in header else (None if table else 1)
-    held: Chunk | None = None
+    return _Layout(header, table, [i for i, c in enumerate(header) if "error" in c], 2 if table else 0,
+                   data_col)
+
+
+def _rows(src: Source, lines: Iterator[tuple[int, str]], layout: _Layout) -> Iterator[tuple[int, float,
+                                                                                             list[str]]]:
+    """The tokenizer: (line number, time, fields) of each readable row, problems reported."""
+    report = src.report
+    clock = Clock(report)
     for number, line in lines:
         if not line.strip():
             continue
         try:
             row = next(csv.reader([line]))
-            t = float(row[time_col])
-        except (ValueError, IndexError, StopIteration):
-            report.problem(src.where(number), f"not a Saleae row: {line[:60]!r}", nlines=1)
+            t = clock.check(float(row[layout.time_col]), src.where(number))
+        except (ValueError, IndexError, StopIteration, csv.Error):
+            report.problem(src.where(number), f"not a Saleae row: {shown(line)}", nlines=1)
             continue
-        if len(row) != len(header):
-            report.problem(src.where(number), f"row has {len(row)} field(s), the header {len(header)}: "
-                                              f"the row is damaged: {line[:60]!r}")
+        if t is None:  # no good time yet: the row cannot be placed
+            report.problem(src.where(number), "row skipped: no usable time before it", nlines=1)
+            continue
+        if len(row) != len(layout.header):
+            report.problem(src.where(number), f"row has {len(row)} field(s), the header "
+                                              f"{len(layout.header)}: the row is damaged: {shown(line)}")
+        yield number, t, row
+
+
+def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
+         multi_file: bool = False) -> Iterator[Chunk]:
+    """The chunk builder: one byte a chunk, held back one row so a following error row can mark it."""
+    own = sides is None
+    sides = sides or Sides(FORMAT, host_is)
+    report = src.report
+    lines = src.lines()
+    first = next(lines, None)
+    if first is None:
+        report.problem(src.name, "empty file")
+        return
+    layout = _layout(src, *first)
+    if layout is None:
+        return
+    header, table = layout.header, layout.table
+    held: Chunk | None = None
+    for number, t, row in _rows(src, lines, layout):
         key = src.name if (not table or multi_file) else row[0]
         d = sides.direction(key)
         if d is None:
-            report.problem(src.where(number), f"a third side {key!r}; its rows are skipped", nlines=1)
+            report.problem(src.where(number), f"a third side {shown(key)}; its rows are skipped", nlines=1)
             continue
-        error = next((_error_text(header[i], row[i]) for i in error_cols if i < len(row) and row[i].strip()),
-                     None)
+        error = next((_error_text(header[i], row[i]) for i in layout.error_cols
+                      if i < len(row) and row[i].strip()), None)
         if table and row[1].strip().lower() != "data":
-            word = " ".join(row[1:]).lower()
-            if "error" in word:
+            if "error" in " ".join(row[1:]).lower():
                 mark = error or row[1].strip()
                 if held is not None and held.dir == d:
                     held = Chunk(held.t, d, held.data, mark)
                 else:
                     yield Chunk(t, d, b"", mark)
             continue
-        value = value_byte(row[data_col]) if data_col is not None and data_col < len(row) else None
+        col = layout.data_col
+        value = value_byte(row[col]) if col is not None and col < len(row) else None
         if value is None:
-            report.problem(src.where(number), f"cannot read the byte value in {line[:60]!r}", nlines=1)
+            report.problem(src.where(number), f"cannot read the byte value in {shown(','.join(row))}",
+                           nlines=1)
             continue
         if held is not None:
             yield held

@@ -18,6 +18,7 @@ instance (``uart-2``) or a class (``rx-data``).
 from __future__ import annotations
 
 import heapq
+import math
 import re
 import statistics
 from collections.abc import Iterator
@@ -27,14 +28,15 @@ from typing import Final
 from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 
-from .base import FormatError, Source
+from .base import Clock, FormatError, Report, Source, shown
 
 FORMAT: Final = "sigrok"
 DESCRIPTION: Final = "sigrok-cli UART annotations (-A uart=rx-data)"
 HOST_DEFAULT: Final = "uart-1 (two instances) or tx-data (one instance)"
 SUFFIXES: Final = (".sigrok",)
 
-_LINE: Final = re.compile(r"(?:(\d+)-(\d+) )?([A-Za-z][\w.]*-\d+): (?:([a-z][a-z0-9-]*): )?(.*)")
+_LINE: Final = re.compile(r"(?:(\d{1,18})-(\d{1,18}) )?([A-Za-z][\w.]*-\d{1,9}): "
+                          r"(?:([a-z][a-z0-9-]*): )?(.*)")
 _ERRORS: Final = {"frame error": "UART framing error", "parity error": "UART parity error"}
 _DATA_BITS: Final = spec.BITS_PER_BYTE - 2  # 8N1 less start and stop bits
 _PRESCAN: Final = 2000  # lines looked at to learn the instances and classes
@@ -71,7 +73,7 @@ def _first_text(rest: str) -> str:
 
 def read(src: Source, host_is: str | None = None, samplerate: float | None = None) -> Iterator[Chunk]:
     report = src.report
-    if samplerate is not None and samplerate <= 0:
+    if samplerate is not None and not (math.isfinite(samplerate) and samplerate > 0):
         raise FormatError(f"--samplerate {samplerate}: must be a positive rate in Hz")
     instances, classes, inferred = _prescan(src)
     if samplerate is None and inferred is not None:
@@ -97,81 +99,67 @@ def read(src: Source, host_is: str | None = None, samplerate: float | None = Non
 
 
 def _extra_lines(src: Source) -> Iterator[tuple[int, str]]:
-    with open(src.path, "rb") as f:
+    with src.reopen() as f:
         for number, raw in enumerate(f, 1):
             yield number, raw.decode("latin-1").rstrip("\r\n")
 
 
-def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, samplerate: float | None,
-          instances: set[str], classes: set[str], only: str | None,
-          report_all: bool = False) -> Iterator[Chunk]:
-    """The chunks of one reading of the file (of one decoder instance when ``only`` is given)."""
-    report = src.report
-    by_instance = len(instances) > 1
-
-    def direction(instance: str, cls: str | None) -> Direction | None:
-        if by_instance:
-            key, default = instance, min(instances, key=_instance_number)
-        else:
-            key, default = (cls or "rx-data").replace("-err", "").replace("-frame", "-data") \
-                .replace("-parity", "-data"), "tx-data"
-            key = "tx-data" if key.startswith("tx") else "rx-data"
-        if host_is is not None:
-            return HOST if host_is in (instance, key, cls) else DEVICE
-        return HOST if key == default else DEVICE
-
-    saw_samples = False
-    last_byte: dict[Direction, Chunk] = {}
-    forms: dict[str, str] = {}  # instance -> "hex" or "ascii", from its first data annotation
+def _annotations(src: Source, lines: Iterator[tuple[int, str]], instances: set[str], only: str | None,
+                 report_all: bool) -> Iterator[tuple[int, re.Match[str]]]:
+    """The line tokenizer: (line number, match) of each annotation line of this pass; a line that is
+    no annotation is reported (once, by the pass that reports everything)."""
     for number, line in lines:
         if not line.strip():
             continue
         m = _LINE.fullmatch(line)
         if not m:
             if report_all:
-                report.problem(src.where(number), f"not a sigrok-cli annotation line: {line[:60]!r}",
-                               nlines=1)
+                src.report.problem(src.where(number), f"not a sigrok-cli annotation line: {shown(line)}",
+                                   nlines=1)
             continue
-        start, _end, instance, cls, rest = m.groups()
+        instance = m.group(3)
         if only is not None and instance != only and (instance in instances or not report_all):
             continue
+        yield number, m
+
+
+def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, samplerate: float | None,
+          instances: set[str], classes: set[str], only: str | None,
+          report_all: bool = False) -> Iterator[Chunk]:
+    """The chunk builder of one reading of the file (of one decoder instance when ``only`` is given):
+    each data byte held back one step so that a following error annotation can mark it."""
+    report = src.report
+    direction = _Directions(instances, host_is)
+    saw_samples = False
+    last_byte: dict[Direction, Chunk] = {}
+    forms: dict[str, str] = {}  # instance -> "hex" or "ascii", from its first data annotation
+    clock = Clock(report if report_all or only is None else _Quiet())
+    for number, m in _annotations(src, lines, instances, only, report_all):
+        start, _end, instance, cls, rest = m.groups()
         d = direction(instance, cls)
-        if d is None:
-            continue
         text = _first_text(rest)
         error = _ERRORS.get(text.strip('"').lower())
         if error is not None or (cls or "").endswith("-err"):
             prev = last_byte.pop(d, None)
-            if prev is not None:
-                yield Chunk(prev.t, d, prev.data, error or f"UART {cls}")
-            else:
-                yield Chunk(None, d, b"", error or f"UART {cls}")
+            yield Chunk(prev.t if prev else None, d, prev.data if prev else b"", error or f"UART {cls}")
             continue
         if cls is not None and not cls.endswith("-data"):
             continue  # start/stop bits, warnings: not data
         value = _byte(text)
-        form = "hex" if re.fullmatch(r'"?[0-9A-Fa-f]{2}"?', text.strip()) else "ascii"
-        if value is not None and forms.setdefault(instance, form) != form:
-            if report_all or only == instance:
-                report.problem(src.where(number), f"annotation {text!r} is {form} but {instance}'s earlier "
-                                                  f"ones are {forms[instance]} (one decoder prints one "
-                                                  f"format): the line is damaged, skipped", nlines=1)
+        problem = _data_problem(text, value, instance, forms)
+        if problem is not None:
+            if report_all or (only == instance and value is not None):
+                report.problem(src.where(number), problem, nlines=1)
             continue
-        if value is None:
-            if not report_all:
-                continue
-            report.problem(src.where(number), f"annotation {text!r} is not a data byte (show only the "
-                                              f"data class: -A uart=rx-data)", nlines=1)
-            continue
+        assert value is not None
         t = None
         if start is not None:
             saw_samples = True
             if samplerate is not None:
-                t = int(start) / samplerate
+                t = clock.check(int(start) / samplerate, src.where(number))
         prev = last_byte.pop(d, None)
         if prev is not None:
             yield prev
-        # hold each byte back one step so a following error annotation can mark it
         last_byte[d] = Chunk(t, d, bytes([value]))
         for other in [k for k in last_byte if k != d]:
             yield last_byte.pop(other)
@@ -179,6 +167,44 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
     if saw_samples and samplerate is None and report_all:
         report.note(f"{src.name}: sample numbers present but no --samplerate given: bytes have no time, "
                     f"so timing checks (no-answer) are skipped")
+
+
+def _data_problem(text: str, value: int | None, instance: str, forms: dict[str, str]) -> str | None:
+    """Why a data annotation cannot be read as a byte (None when it can)."""
+    if value is None:
+        return f"annotation {shown(text)} is not a data byte (show only the data class: -A uart=rx-data)"
+    form = "hex" if re.fullmatch(r'"?[0-9A-Fa-f]{2}"?', text.strip()) else "ascii"
+    if forms.setdefault(instance, form) != form:
+        return (f"annotation {shown(text)} is {form} but {instance}'s earlier ones are {forms[instance]} "
+                f"(one decoder prints one format): the line is damaged, skipped")
+    return None
+
+
+class _Directions:
+    """Which line an annotation is on: by decoder instance when there are several (host ``uart-1``),
+    else by class (host ``tx-data``); ``--host-is`` names either."""
+
+    def __init__(self, instances: set[str], host_is: str | None) -> None:
+        self.by_instance = len(instances) > 1
+        self.first = min(instances, key=_instance_number) if instances else ""
+        self.host_is = host_is
+
+    def __call__(self, instance: str, cls: str | None) -> Direction:
+        if self.by_instance:
+            key, default = instance, self.first
+        else:
+            key = "tx-data" if (cls or "rx-data").startswith("tx") else "rx-data"
+            default = "tx-data"
+        if self.host_is is not None:
+            return HOST if self.host_is in (instance, key, cls) else DEVICE
+        return HOST if key == default else DEVICE
+
+
+class _Quiet(Report):
+    """A report for the extra passes over the file: the first pass reports everything once."""
+
+    def problem(self, where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
+        pass
 
 
 def _instance_number(name: str) -> int:
@@ -191,7 +217,7 @@ def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
     instances: set[str] = set()
     classes: set[str] = set()
     spans: list[int] = []
-    with open(src.path, "rb") as f:
+    with src.reopen() as f:
         for raw in islice(f, _PRESCAN):
             m = _LINE.fullmatch(raw.decode("latin-1").rstrip("\r\n"))
             if m:
@@ -205,4 +231,4 @@ def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
     if spans:
         # a data annotation spans the 8 data bits
         rate = round(statistics.median(spans) / _DATA_BITS * spec.BAUD)
-    return instances, classes, rate or None
+    return instances, classes, rate if rate and rate > 0 else None

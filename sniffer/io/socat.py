@@ -13,7 +13,9 @@ start with ``000`` is read that way, the first other nine-digit fraction switche
 socat's own diagnostics (``2024/05/01 10:00:00 socat[123] N ...``) are skipped. socat counts each
 direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``length=``, or a
 ``from=`` past where that side's previous transfer ended (transfers lost), is reported. A restarted
-socat appending to the same log starts again at ``from=0``, which is accepted.
+socat appending to the same log starts again at ``from=0``, which is accepted. The reader is a line
+tokenizer (``tokenize``: what a line is) and a chunk builder (``_Transfers``: one chunk per transfer,
+handed on in bounded pieces; ``length=`` beyond 16 MiB is damage).
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
@@ -21,12 +23,12 @@ Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from typing import Final
 
 from xac1_proto.chunk import Chunk
 
-from .base import Report, Sides, Source, wallclock
+from .base import Clock, Report, Sides, Source, shown, wallclock
 
 FORMAT: Final = "socat"
 DESCRIPTION: Final = "socat -x / -v / -x -v dump"
@@ -34,9 +36,12 @@ HOST_DEFAULT: Final = ">"
 SUFFIXES: Final = (".socat",)
 
 _HEADER: Final = re.compile(
-    r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?length=(\d+) from=(\d+) to=(\d+)")
+    r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?"
+    r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})")
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
+_MAX_TRANSFER: Final = 1 << 24  # socat -b sets the transfer size (8192 by default); more is damage
+_SPILL: Final = 1 << 16  # bytes of one transfer held before they are handed on
 _ESCAPES: Final = {"r": 0x0D, "n": 0x0A, "\\": 0x5C, "a": 0x07, "b": 0x08, "v": 0x0B, "f": 0x0C,
                    "t": 0x09, "e": 0x1B}
 
@@ -65,98 +70,156 @@ class _Clock:
         return wallclock(date, f"{clock}.{frac}" if frac else clock)
 
 
+# line kinds of the tokenizer
+HEADER, END, DIAG, BLANK, HEXROW, OTHER = "header", "end", "diag", "blank", "hex", "other"
+
+
+def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
+    """What one dump line (or the rest of one) is: a transfer header, the ``--`` end of an ``-x -v``
+    transfer, a socat diagnostic, a blank line, a row of hex bytes, or anything else (text or junk),
+    with the regular-expression match that read it."""
+    m = _HEADER.match(text)
+    if m:
+        return HEADER, m
+    if text.strip() == "--":
+        return END, None
+    if _DIAG.match(text):
+        return DIAG, None
+    if not text.strip():
+        return BLANK, None
+    hm = _HEX.fullmatch(text)
+    return (HEXROW, hm) if hm else (OTHER, None)
+
+
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    sides = Sides(FORMAT, host_is, (">", "<"))
-    clock = _Clock()
-    report = src.report
-    # the transfer being read: (line, direction, t, length, data, mode "hex"/"text"/None)
-    cur: dict | None = None
-    text_bytes = 0
-    following: dict[str, int] = {}  # side name -> the from= its next transfer should have
-
-    def finish(line: int) -> Chunk | None:
-        nonlocal cur
-        rec, cur = cur, None
-        if rec is None:
-            return None
-        data = bytes(rec["data"])
-        if len(data) != rec["length"]:
-            report.problem(src.where(rec["line"]),
-                           f"transfer says length={rec['length']} but its dump holds {len(data)} "
-                           f"byte(s) (cut short before line {line})",
-                           nbytes=max(0, rec["length"] - len(data)))
-        return Chunk(rec["t"], rec["dir"], data) if data else None
-
+    builder = _Transfers(src, Sides(FORMAT, host_is, (">", "<")))
+    number = 0
     for number, line in src.lines():
         rest: str | None = line
         while rest is not None:
-            text, rest = rest, None
-            if cur is not None and cur["mode"] == "text" and len(cur["data"]) < cur["length"]:
-                if _HEADER.match(text) and not cur["data"]:
-                    pass  # an empty-looking transfer: fall through to the header
-                else:
-                    consumed, cut = _take_text(text, cur, report, src.where(number))
-                    text_bytes += consumed
-                    if len(cur["data"]) < cur["length"]:
-                        cur["data"].append(0x0A)  # the line end was an LF byte
-                        if len(cur["data"]) == cur["length"]:
-                            chunk = finish(number)
-                            if chunk:
-                                yield chunk
-                        break
-                    chunk = finish(number)
-                    if chunk:
-                        yield chunk
-                    rest = text[cut:] or None
-                    continue
-            m = _HEADER.match(text)
-            if m:
-                chunk = finish(number)
-                if chunk:
-                    yield chunk
-                d = sides.direction(m.group(1))
-                assert d is not None
-                length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
-                _check_counters(m.group(1), length, start, end, following, report, src.where(number))
-                cur = {"line": number, "dir": d, "t": clock(m.group(2), m.group(3), m.group(4)),
-                       "length": length, "data": bytearray(), "mode": None}
-                tail = text[m.end():].strip()
-                if tail:
-                    report.problem(src.where(number), f"unexpected text after the header: {tail!r}")
-                continue
-            if text.strip() == "--" or _DIAG.match(text):
-                if text.strip() == "--" or cur is None or cur["mode"] != "text":
-                    chunk = finish(number)
-                    if chunk:
-                        yield chunk
-                continue
-            if not text.strip():
-                if cur is not None and cur["mode"] is None:
-                    cur["mode"] = "text"
-                    rest = text
-                continue
-            if cur is None:
-                report.problem(src.where(number), f"not a socat header, data or log line: {text[:60]!r}",
-                               nlines=1)
-                continue
-            hm = _HEX.fullmatch(text)
-            if cur["mode"] in (None, "hex") and hm:
-                cur["mode"] = "hex"
-                cur["data"].extend(bytes.fromhex(hm.group(1)))
-                continue
-            if cur["mode"] is None:
+            rest = yield from builder.step(number, rest)
+    yield from builder.end(number)
+
+
+class _Transfers:
+    """The chunk builder: turns the tokenized lines into one chunk per transfer (long transfers in
+    bounded pieces), checking ``length=`` and the counters."""
+
+    def __init__(self, src: Source, sides: Sides) -> None:
+        self.src = src
+        self.report = src.report
+        self.sides = sides
+        self.clock = _Clock()
+        self.times = Clock(src.report)
+        # the transfer being read: line, direction, t, length, data, sent, mode "hex"/"text"/None
+        self.cur: dict | None = None
+        self.text_bytes = 0
+        self.following: dict[str, int] = {}  # side name -> the from= its next transfer should have
+
+    def finish(self, line: int) -> Iterator[Chunk]:
+        rec, self.cur = self.cur, None
+        if rec is None:
+            return
+        if _got(rec) != rec["length"]:
+            self.report.problem(self.src.where(rec["line"]),
+                                f"transfer says length={rec['length']} but its dump holds {_got(rec)} "
+                                f"byte(s) (cut short before line {line})",
+                                nbytes=max(0, rec["length"] - _got(rec)))
+        if rec["data"]:
+            yield Chunk(rec["t"], rec["dir"], bytes(rec["data"]))
+
+    def step(self, number: int, text: str) -> Generator[Chunk, None, str | None]:
+        """Read one line or the rest of one; returns (as the generator's value) a rest still to read."""
+        cur = self.cur
+        if cur is not None and cur["mode"] == "text" and _got(cur) < cur["length"] and \
+                not (_got(cur) == 0 and _HEADER.match(text)):  # else an empty-looking transfer
+            return (yield from self._text(number, text))
+        kind, m = tokenize(text)
+        if kind == HEADER:
+            assert m is not None
+            yield from self.finish(number)
+            self._header(number, m, text)
+        elif kind in (END, DIAG):
+            if kind == END or cur is None or cur["mode"] != "text":
+                yield from self.finish(number)
+        elif kind == BLANK:
+            if cur is not None and cur["mode"] is None:
                 cur["mode"] = "text"
-                rest = text
-                continue
-            report.problem(src.where(number), f"cannot read this dump line: {text[:60]!r}", nlines=1)
-    if cur is not None and cur["mode"] == "text" and len(cur["data"]) == cur["length"]:
-        src.unterminated = None  # -v text need not end with a newline: length= says it is whole
-    chunk = finish(number if "number" in locals() else 0)
-    if chunk:
-        yield chunk
-    if text_bytes:
-        report.note(f"{src.name}: socat -v text dump: an unprintable byte shows as '.', so a '.' may "
-                    f"stand for another byte (use socat -x -v for exact bytes)")
+                return text
+        elif cur is None:
+            self.report.problem(self.src.where(number), f"not a socat header, data or log line: "
+                                                        f"{shown(text)}", nlines=1)
+        elif kind == HEXROW and cur["mode"] in (None, "hex"):
+            assert m is not None
+            cur["mode"] = "hex"
+            cur["data"].extend(bytes.fromhex(m.group(1)))
+            yield from _spill(cur)
+        elif cur["mode"] is None:
+            cur["mode"] = "text"
+            return text
+        else:
+            self.report.problem(self.src.where(number), f"cannot read this dump line: {shown(text)}",
+                                nlines=1)
+        return None
+
+    def _text(self, number: int, text: str) -> Generator[Chunk, None, str | None]:
+        """-v text of the current transfer; returns what follows its last byte on the line."""
+        cur = self.cur
+        assert cur is not None
+        consumed, cut = _take_text(text, cur)
+        self.text_bytes += consumed
+        yield from _spill(cur)
+        if _got(cur) < cur["length"]:
+            cur["data"].append(0x0A)  # the line end was an LF byte
+            if _got(cur) == cur["length"]:
+                yield from self.finish(number)
+            return None
+        yield from self.finish(number)
+        return text[cut:] or None
+
+    def _header(self, number: int, m: re.Match[str], text: str) -> None:
+        report, where = self.report, self.src.where(number)
+        d = self.sides.direction(m.group(1))
+        assert d is not None
+        length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
+        _check_counters(m.group(1), length, start, end, self.following, report, where)
+        if length > _MAX_TRANSFER:
+            report.problem(where, f"length={length} is not plausible for one transfer (expected at "
+                                  f"most {_MAX_TRANSFER}); read as that")
+            length = _MAX_TRANSFER
+        try:
+            t = self.times.check(self.clock(m.group(2), m.group(3), m.group(4)), where)
+        except ValueError as exc:
+            report.problem(where, f"{exc}; the bytes are kept with the previous time")
+            t = self.times.last
+        self.cur = {"line": number, "dir": d, "t": t, "length": length, "data": bytearray(), "sent": 0,
+                    "mode": None}
+        tail = text[m.end():].strip()
+        if tail:
+            report.problem(where, f"unexpected text after the header: {shown(tail)}")
+
+    def end(self, number: int) -> Iterator[Chunk]:
+        cur = self.cur
+        if cur is not None and cur["mode"] == "text" and _got(cur) == cur["length"]:
+            self.src.unterminated = None  # -v text need not end with a newline: length= says it is whole
+        yield from self.finish(number)
+        if self.text_bytes:
+            self.report.note(f"{self.src.name}: socat -v text dump: an unprintable byte shows as '.', so "
+                             f"a '.' may stand for another byte (use socat -x -v for exact bytes)")
+
+
+def _got(rec: dict) -> int:
+    """Bytes of a transfer read so far (handed on and held)."""
+    return int(rec["sent"]) + len(rec["data"])
+
+
+def _spill(rec: dict) -> Iterator[Chunk]:
+    """Hand on the bytes held of a long transfer (memory stays bounded whatever ``length=`` says)."""
+    data: bytearray = rec["data"]
+    if len(data) >= _SPILL:
+        yield Chunk(rec["t"], rec["dir"], bytes(data))
+        rec["sent"] += len(data)
+        data.clear()
 
 
 def _check_counters(side: str, length: int, start: int, end: int, following: dict[str, int],
@@ -180,12 +243,12 @@ def _check_counters(side: str, length: int, start: int, end: int, following: dic
     following[side] = start + length
 
 
-def _take_text(text: str, rec: dict, report: object, where: str) -> tuple[int, int]:
+def _take_text(text: str, rec: dict) -> tuple[int, int]:
     """Decode -v text into ``rec['data']`` until its length is reached; returns (bytes, chars used)."""
     data: bytearray = rec["data"]
     i = 0
     start = len(data)
-    while i < len(text) and len(data) < rec["length"]:
+    while i < len(text) and rec["sent"] + len(data) < rec["length"]:
         c = text[i]
         if c == "\\" and i + 1 < len(text) and text[i + 1] in _ESCAPES:
             data.append(_ESCAPES[text[i + 1]])

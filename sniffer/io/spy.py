@@ -19,7 +19,7 @@ from typing import Final
 
 from xac1_proto.chunk import Chunk
 
-from .base import Sides, Source
+from .base import Clock, Sides, Source, shown
 
 FORMAT: Final = "spy"
 DESCRIPTION: Final = "pyserial spy:// hexdump log"
@@ -45,30 +45,32 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     report = src.report
     pending: Chunk | None = None
     expect_offset = 0
+    clock = Clock(report)
     for number, raw in src.lines():
         line = _ANSI.sub("", raw)
         if not line.strip():
             continue
         m = _ROW.fullmatch(line)
         if not m:
-            report.problem(src.where(number), f"not a spy row: {line[:60]!r}", nlines=1)
+            report.problem(src.where(number), f"not a spy row: {shown(line)}", nlines=1)
             continue
-        t, label, value = float(m.group(1)), m.group(2), m.group(3)
+        label, value = m.group(2), m.group(3)
+        t = clock.check(float(m.group(1)), src.where(number))
         if label not in ("TX", "RX"):
             if label not in _CONTROL:
-                report.problem(src.where(number), f"unknown row label {label!r}", nlines=1)
+                report.problem(src.where(number), f"unknown row label {shown(label)}", nlines=1)
             continue
         if value.strip() == "<empty>":
             continue
         dm = _DATA.fullmatch(value)
         if not dm:
-            report.problem(src.where(number), f"{label} row without a hexdump: {value[:60]!r}", nlines=1)
+            report.problem(src.where(number), f"{label} row without a hexdump: {shown(value)}", nlines=1)
             continue
         offset = int(dm.group(1), 16)
         area = dm.group(2)[:_HEX_AREA]
         cells = area.split()
         if not cells or not all(_BYTE.fullmatch(c) for c in cells) or len(cells) > 16:
-            report.problem(src.where(number), f"bad hexdump cells: {area.strip()[:60]!r}", nlines=1)
+            report.problem(src.where(number), f"bad hexdump cells: {shown(area.strip())}", nlines=1)
             continue
         data = bytes.fromhex("".join(cells))
         d = sides.direction(label)

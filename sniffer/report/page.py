@@ -78,8 +78,8 @@ def context(agg: SessionAggregator, title: str = "XA-C1 session report") -> dict
         "title": title, "empty": agg.empty, "sources": agg.sources, "timed": agg.timed,
         "start": _when(agg.t_first), "end": _when(agg.t_last), "span": _duration(span),
         "summary": summary, "verdicts": agg.verdicts(), "command_rows": command_rows,
-        "violation_rows": [{"code": c, "count": n, "meaning": spec.VIOLATIONS[c][1],  # type: ignore[index]
-                            "severity": spec.VIOLATIONS[c][0]}  # type: ignore[index]
+        "violation_rows": [{"code": c, "count": n, "meaning": spec.VIOLATIONS[c][1],
+                            "severity": spec.VIOLATIONS[c][0]}
                            for c, n in summary.get("violations", {}).items()],
         "alarms": alarms, "alarm_count": agg.alarm_count, "aggregated": agg.aggregated,
         "kept": len(agg.records), "total": agg.total_records, "limits": agg.limits,
