@@ -11,6 +11,7 @@ How this works:
   registered here; ``HYPOTHESIS_PROFILE`` picks one, else ``ci`` under CI and ``dev`` otherwise.
 - ``wait_until(predicate, timeout, what)`` replaces sleeping as synchronisation: it polls something the
   test can observe and fails saying what never happened.
+- ``gallery`` is ``captures/make_gallery.py`` (the scripted session, the capture makers).
 - ``xac1(...)`` runs the console script's module as a user does (a real subprocess);
   ``conformance(...)`` runs ``xac1 conformance``; ``read_table(url)`` reads a device's 15 points and
   its OUT ports through a plain client.
@@ -22,6 +23,7 @@ directory on ``sys.path`` (rootdir-relative "prepend" import mode, as for ``snif
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import shutil
 import subprocess
@@ -30,6 +32,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import TypeVar
 
 import pytest
@@ -40,6 +43,18 @@ from xac1_proto.client import Client
 
 ROOT = Path(__file__).resolve().parent.parent
 CAPTURES = ROOT / "captures"
+
+
+def _load_gallery() -> ModuleType:
+    """``captures/make_gallery.py`` (not a package module): the scripted session and capture makers."""
+    spec_ = importlib.util.spec_from_file_location("make_gallery", CAPTURES / "make_gallery.py")
+    assert spec_ is not None and spec_.loader is not None
+    module = importlib.util.module_from_spec(spec_)
+    spec_.loader.exec_module(module)
+    return module
+
+
+gallery = _load_gallery()
 
 pytest_plugins = ("pytester",)  # tests/test_conftest.py runs small pytest sessions with it
 
