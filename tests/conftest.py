@@ -13,7 +13,8 @@ How this works:
   test can observe and fails saying what never happened.
 - ``gallery`` is ``captures/make_gallery.py`` (the scripted session, the capture makers).
 - ``xac1(...)`` runs the console script's module as a user does (a real subprocess);
-  ``conformance(...)`` runs ``xac1 conformance``; ``read_table(url)`` reads a device's 15 points and
+  ``conformance(...)`` runs ``xac1 conformance`` (``failed_checks``/``skipped_checks`` read its JUnit
+  XML); ``read_table(url)`` reads a device's 15 points and
   its OUT ports through a plain client.
 
 Plain helpers are imported by the test modules (``from conftest import xac1``): pytest puts this
@@ -29,6 +30,7 @@ import shutil
 import subprocess
 import sys
 import time
+import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -164,6 +166,20 @@ def conformance(args: list[str], cwd: str | os.PathLike[str],
                 timeout: float = RUN_TIMEOUT) -> subprocess.CompletedProcess[str]:
     """``xac1 conformance ARGS`` in ``cwd``."""
     return xac1("conformance", *args, cwd=cwd, timeout=timeout)
+
+
+def failed_checks(junit: Path) -> set[str]:
+    """Names of the checks that failed (or errored) in a run's JUnit XML."""
+    root = ET.parse(junit).getroot()
+    return {case.get("name", "") for case in root.iter("testcase")
+            if case.find("failure") is not None or case.find("error") is not None}
+
+
+def skipped_checks(junit: Path) -> dict[str, str]:
+    """Skipped check name -> the reason given, from a run's JUnit XML."""
+    root = ET.parse(junit).getroot()
+    return {case.get("name", ""): skip.get("message", "") for case in root.iter("testcase")
+            if (skip := case.find("skipped")) is not None}
 
 
 @dataclass(frozen=True)

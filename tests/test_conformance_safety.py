@@ -17,6 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from conftest import conformance, failed_checks, read_table, skipped_checks
 
 from conformance.evidence import Probe
 from conformance.settings import SettingsError, parse_points
@@ -28,21 +29,9 @@ from xac1_proto.recording import read_recording
 from xac1_proto.sim import DeviceModel, SimConfig, serve_tcp
 from xac1_proto.sim.model import PointData
 
-RUN_TIMEOUT = 90
 # Points holding data before the run (the state file): the only ones the suite may write back.
 HELD = {3: (5, 2, 1, 0x400), 7: (9, 3, 0, 0x800)}
 MOTION = ["--allow-motion", "--safe-range", "0:0x1000"]
-
-
-def conformance(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=RUN_TIMEOUT)
-
-
-def read_table(url: str) -> dict[int, tuple[int, int, int, int]]:
-    """All 15 points through a separate client (V, A, O, Pos)."""
-    with Client(url, timeout=2) as c:
-        return {n: (a.v, a.a, a.o, a.pos) for n in range(1, 16) for a in [c.read_point(n)]}
 
 
 @pytest.fixture
@@ -88,7 +77,7 @@ def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     after = read_table(url)
     assert r.returncode == 0, r.stdout[-4000:]
     assert after == before
-    assert {n for n, (v, a, _o, _p) in after.items() if v and a} == set(HELD)
+    assert {n for n, (v, a, _o, _p) in after.points.items() if v and a} == set(HELD)
     assert written_points(log) == set(HELD)  # and nothing else was ever written, even for a moment
     text = report.read_text()
     for where in (r.stdout, text):
@@ -106,16 +95,18 @@ def test_scratch_points_lets_the_checks_run(sim_process, tmp_path):
     url, _state, log = sim_process
     before = read_table(url)
     report = tmp_path / "r.md"
+    junit = tmp_path / "junit.xml"
     r = conformance(["--port", url, *MOTION, "--scratch-points", "1,2", "--report", str(report),
-                     "-k", "store_current or point_move_carries_n or read_back"], tmp_path)
+                     "-k", "store_current or point_move_carries_n or read_back", "--junitxml", str(junit)],
+                    tmp_path)
     after = read_table(url)
     assert r.returncode == 0, r.stdout[-4000:]
-    assert "skipped" not in r.stdout.splitlines()[-1] or " 0 skipped" in r.stdout.splitlines()[-1]
+    assert skipped_checks(junit) == {} and not failed_checks(junit)
     text = report.read_text()
     assert "| store_current |" in text and "| point_move_carries_n |" in text and "SKIP" not in text
     assert written_points(log) <= {1, 2, *HELD} and {1, 2} <= written_points(log)
-    assert {n: after[n] for n in HELD} == {n: before[n] for n in HELD}
-    assert all(after[n] == before[n] for n in range(4, 16) if n != 7)
+    assert {n: after.points[n] for n in HELD} == {n: before.points[n] for n in HELD}
+    assert all(after.points[n] == before.points[n] for n in range(4, 16) if n != 7)
     assert "point 1 was never written before the run" in text
 
 
