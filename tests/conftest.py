@@ -156,8 +156,9 @@ RUN_TIMEOUT = 90.0  # seconds: a run that hangs fails its test instead of hangin
 
 
 def xac1(*args: str, cwd: str | os.PathLike[str] = ROOT, timeout: float = 60.0,
-         stdin: str | None = None) -> subprocess.CompletedProcess[str]:
-    """``xac1 ARGS`` as a user runs it (``python -m xac1_proto``), output captured as text."""
+         stdin: str = "") -> subprocess.CompletedProcess[str]:
+    """``xac1 ARGS`` as a user runs it (``python -m xac1_proto``), output captured as text; ``stdin``
+    is all it reads (then end of file: never the terminal pytest runs in)."""
     return subprocess.run([sys.executable, "-m", "xac1_proto", *args], cwd=cwd, input=stdin,
                           capture_output=True, text=True, timeout=timeout)
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import os
 import re
-import subprocess
 import sys
 
 import pexpect
 import pytest
+from conftest import xac1
 
 from xac1_proto import frames as fr
 from xac1_proto.console.commands import UsageError, help_text, parse_line
@@ -101,22 +101,19 @@ def test_console_session_through_a_pty():
 def test_console_reads_piped_stdin():
     """Without a terminal the console reads plain lines (a script can drive it); moves still ask, and
     the answer is read from the next line; --yes skips the question."""
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "console", "--port", SIM],
-                       input="version\nhome\nn\ngo vel=30 a=2 pos=5000\ny\nread 1\n", capture_output=True,
-                       text=True, timeout=30)
+    r = xac1("console", "--port", SIM, stdin="version\nhome\nn\ngo vel=30 a=2 pos=5000\ny\nread 1\n",
+             timeout=30)
     assert r.returncode == 0, r.stderr
     assert "0RV answer" in r.stdout and "not sent" in r.stdout
     assert "0MV answer vel=1E (30) A=2 Pos=0x001388 (5000)" in r.stdout and "0RP answer N=1" in r.stdout
     assert "0MP answer" not in r.stdout
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "console", "--port", SIM, "--yes"],
-                       input="home\n", capture_output=True, text=True, timeout=30)
+    r = xac1("console", "--port", SIM, "--yes", stdin="home\n", timeout=30)
     assert r.returncode == 0 and "go ahead" not in r.stdout and "0MP answer N=0" in r.stdout
 
 
 def test_console_bad_port_is_a_clear_error():
     """A port that cannot be opened: one line naming it, exit 4, no traceback."""
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "console", "--port", "xac1sim://?bogus=1"],
-                       input="", capture_output=True, text=True, timeout=30)
+    r = xac1("console", "--port", "xac1sim://?bogus=1", timeout=30)
     assert r.returncode == 4 and "cannot open" in r.stderr and "Traceback" not in r.stderr
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 import serial
+from conftest import xac1
 
 from xac1_proto.recording import read_recording
 from xac1_proto.sim.model import PointData
@@ -97,8 +98,7 @@ def test_cli_refuses_bad_state_file(tmp_path: Path, content: str) -> None:
     """A corrupt or foreign state file gives a clear error (exit 2, no traceback) and is left untouched."""
     state = tmp_path / "table.json"
     state.write_text(content)
-    proc = subprocess.run([sys.executable, "-m", "xac1_proto", "sim", "--pty", "--state", str(state)],
-                          capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
+    proc = xac1("sim", "--pty", "--state", str(state), timeout=30)
     assert proc.returncode == 2
     assert str(state) in proc.stderr and "Traceback" not in proc.stderr
     assert state.read_text() == content
@@ -108,8 +108,7 @@ def test_cli_bad_options() -> None:
     """User errors in options are one clear line, never a traceback."""
     for args in (["--tcp", "nope"], ["--pty", "--deviation", "bogus"], ["--pty", "--version", "1.0"],
                  ["--pty", "--option", "colour=red"]):
-        proc = subprocess.run([sys.executable, "-m", "xac1_proto", "sim", *args], capture_output=True,
-                              text=True, timeout=30, stdin=subprocess.DEVNULL)
+        proc = xac1("sim", *args, timeout=30)
         assert proc.returncode == 2, args
         assert "error:" in proc.stderr and "Traceback" not in proc.stderr, args
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import os
 import select
-import shutil
 import socket
 import subprocess
 import termios
@@ -265,7 +264,7 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-@pytest.mark.skipif(shutil.which("socat") is None, reason="socat not installed (.ci/run installs it)")
+@pytest.mark.requires_tool("socat")
 def test_socat_bridges_pty_to_tcp() -> None:
     """socat (a real third-party tool) bridges the simulator's pty to a TCP port; a socket:// client
     gets the device's answers through it."""

@@ -16,6 +16,7 @@ import threading
 import time
 from pathlib import Path
 
+from conftest import xac1
 from sniffer_wire import ScriptedHost, YCable
 
 from xac1_proto.client import Client
@@ -101,8 +102,7 @@ class Cli:
 
 def decode(path: Path) -> list[dict]:
     """``xac1 decode FILE --format jsonl`` as the user runs it (exit 1: it found violations)."""
-    done = subprocess.run([sys.executable, "-m", "xac1_proto", "decode", str(path), "--format", "jsonl"],
-                          capture_output=True, text=True, timeout=WAIT_S)
+    done = xac1("decode", str(path), "--format", "jsonl", timeout=WAIT_S)
     assert done.returncode in (0, 1) and not done.stderr, done.stderr
     return [json.loads(line) for line in done.stdout.splitlines()]
 
