@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
 from conftest import xac1
 
 import xac1_proto
+
+pytestmark = pytest.mark.slow  # xac1 as a subprocess
 
 
 def test_version():

@@ -88,6 +88,7 @@ def test_model_names_broken_rules():
     one_problem(m.judge(WriteOutputs(o=2), _answer(wrong), wrong, []), "0WS echo differs")
 
 
+@pytest.mark.slow
 def test_plugin_is_inert(tmp_path):
     """With no --xac1 option and no checks collected, the plugin adds nothing to a pytest run (no device
     opened, no summary), yet its options are registered."""
@@ -101,6 +102,7 @@ def test_plugin_is_inert(tmp_path):
     assert "--xac1-port" in h.stdout and "--xac1-safe-range" in h.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,words", [
     (["--port", "socket://127.0.0.1:1", "--allow-motion"], "--safe-range"),
     (["--safe-range", "9:1"], "above"),
@@ -113,6 +115,7 @@ def test_cli_usage_errors(tmp_path, args, words):
     assert words in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.slow
 def test_cli_port_that_does_not_open(tmp_path):
     """A port that cannot be opened ends the run with the reason, nothing written, exit status 3 (the run
     could not go on: README "Conformance")."""

@@ -66,6 +66,7 @@ def written_points(log: Path) -> set[int]:
     return found - {0}
 
 
+@pytest.mark.slow
 def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     """On a real device (not xac1sim://) the suite writes only points that held data, restores them
     exactly, leaves never-written points never written (docs/protocol.md silent item 6), and skips the checks
@@ -89,6 +90,7 @@ def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     assert {int(k, 16): (p["v"], p["a"], p["o"], p["pos"]) for k, p in saved.items()} == HELD
 
 
+@pytest.mark.slow
 def test_scratch_points_lets_the_checks_run(sim_process, tmp_path):
     """With --scratch-points the named points are used first, so the checks that need more points run;
     points that held data are still restored and the report names the never-written ones it changed."""
@@ -123,6 +125,7 @@ def _held_model() -> DeviceModel:
     return DeviceModel(SimConfig(time_scale=0), {n: PointData(*d) for n, d in HELD.items()})
 
 
+@pytest.mark.slow
 def test_position_restored(tmp_path):
     """An axis homed and inside the safe range at the start is moved back there at the end (0MV at a
     gentle speed) and 0RC confirms it; the report says so and that mode 1 is left on purpose."""
@@ -143,6 +146,7 @@ def test_position_restored(tmp_path):
     assert "does not send 0CM0" in text and "--restore-mode0" in text
 
 
+@pytest.mark.slow
 def test_position_not_known_is_reported(tmp_path):
     """An axis not homed at the start (0RC answers FFFFFF) cannot be put back: the safety section says the
     position was not restored and why."""
@@ -156,6 +160,7 @@ def test_position_not_known_is_reported(tmp_path):
     assert "axis position not restored" in r.stdout
 
 
+@pytest.mark.slow
 def test_restore_mode0_sends_0cm0_last(tmp_path):
     """--restore-mode0 sends 0CM0 as the run's last command: the controller ends in mode 0."""
     with serve_tcp(model=_held_model()) as sim:
@@ -196,6 +201,7 @@ def silent_port() -> Iterator[str]:
         srv.close()
 
 
+@pytest.mark.slow
 def test_no_answer_ends_quickly_with_a_verdict(silent_port, tmp_path):
     """A device that answers nothing ends the run after the first probes with "no answer from the device"
     (exit status 3), a summary on the terminal and the report: no list of failures, nothing written."""

@@ -22,6 +22,8 @@ from xac1_proto.frames import AlarmReset, ReadVersion
 from xac1_proto.sim import DeviceModel, SimConfig, serve_tcp
 from xac1_proto.sim.model import PointData
 
+pytestmark = pytest.mark.slow  # whole conformance runs in a subprocess
+
 HELD = {3: (5, 2, 1, 0x400), 7: (9, 3, 0, 0x800)}  # points holding data before the run (restorable)
 MOTION = ["--allow-motion", "--safe-range", "0:0x1000"]
 LIVENESS = (AlarmReset().to_bytes(), ReadVersion().to_bytes())  # what the suite sends to see if it is alive

@@ -18,6 +18,8 @@ from conftest import RUN_TIMEOUT, conformance, failed_checks, read_table, skippe
 
 from xac1_proto.sim import DEVIATIONS, SimConfig, serve_tcp
 
+pytestmark = pytest.mark.slow  # every test runs xac1 conformance in a subprocess
+
 FAST = ["--examples", "8"]
 
 # deviation -> a check (JUnit test name prefix) that must fail for it

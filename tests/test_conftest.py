@@ -14,6 +14,9 @@ from conftest import hypothesis_profile, wait_until
 from hypothesis import settings
 
 CONFTEST = Path(__file__).with_name("conftest.py")
+# the session's conftest.py runs ours where it is (its paths are relative to this tree)
+USE_OUR_CONFTEST = (f"import runpy\nours = runpy.run_path({str(CONFTEST)!r})\n"
+                    "globals().update((k, v) for k, v in ours.items() if not k.startswith('__'))\n")
 
 USES_TOOLS = """
 import pytest
@@ -34,7 +37,7 @@ def test_no_tool():
 @pytest.fixture
 def session(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch, tmp_path: Path):
     """Run USES_TOOLS with our conftest and PATH = a scratch bin directory holding ``present`` tools."""
-    pytester.makeconftest(CONFTEST.read_text())
+    pytester.makeconftest(USE_OUR_CONFTEST)
     pytester.makepyfile(test_tools=USES_TOOLS)
     outer = hypothesis_profile()  # the inner conftest loads a profile into this process too
     monkeypatch.delenv("HYPOTHESIS_PROFILE", raising=False)
@@ -133,6 +136,7 @@ def test_show():
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("env,want", [
     ({"CI": "true", "HYPOTHESIS_PROFILE": "dev"}, "SETTINGS False None False"),
     ({"CI": "true"}, "SETTINGS True None True"),
@@ -143,7 +147,7 @@ def test_a_fresh_session_runs_with_the_chosen_profile(pytester, monkeypatch, env
     monkeypatch.delenv("HYPOTHESIS_PROFILE", raising=False)
     for name, value in env.items():
         monkeypatch.setenv(name, value)
-    pytester.makeconftest(CONFTEST.read_text())
+    pytester.makeconftest(USE_OUR_CONFTEST)
     pytester.makepyfile(SHOW_SETTINGS)
     r = pytester.runpytest_subprocess("-s", "-p", "no:cacheprovider")
     r.assert_outcomes(passed=1)

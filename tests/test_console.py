@@ -59,6 +59,7 @@ def spawn_console(*args: str) -> pexpect.spawn:
                          timeout=10, encoding="utf-8", dimensions=(40, 200), env=env)
 
 
+@pytest.mark.slow
 def test_console_session_through_a_pty():
     """A short session as a person types it: help, tab completion, point data, a refused and a
     confirmed move, an alarm with its meaning, reset, history recall, a usage error, status, quit."""
@@ -98,6 +99,7 @@ def test_console_session_through_a_pty():
     assert "> '0MP0' CR LF" in transcript and "> '0MP1'" not in transcript  # the refused move: not sent
 
 
+@pytest.mark.slow
 def test_console_reads_piped_stdin():
     """Without a terminal the console reads plain lines (a script can drive it); moves still ask, and
     the answer is read from the next line; --yes skips the question."""
@@ -111,12 +113,14 @@ def test_console_reads_piped_stdin():
     assert r.returncode == 0 and "go ahead" not in r.stdout and "0MP answer N=0" in r.stdout
 
 
+@pytest.mark.slow
 def test_console_bad_port_is_a_clear_error():
     """A port that cannot be opened: one line naming it, exit 4, no traceback."""
     r = xac1("console", "--port", "xac1sim://?bogus=1", timeout=30)
     assert r.returncode == 4 and "cannot open" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.slow
 def test_history_file_survives_sessions_and_ctrl_c_clears_the_line(tmp_path):
     """--history FILE keeps typed lines across sessions (up arrow recalls them); Ctrl-C at the prompt
     drops the line being typed and keeps the console running; Ctrl-D leaves with status 0."""

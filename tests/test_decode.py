@@ -99,6 +99,7 @@ GALLERY = sorted(p.name for p in CAPTURES.iterdir()
                  if p.is_file() and p.suffix != ".py" and p.name != "README.md")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", GALLERY)
 def test_every_gallery_file_decodes_with_no_options(name: str) -> None:
     """``xac1 decode captures/<any>`` works as a new user types it: the sloppy host's and the faulty
@@ -121,6 +122,7 @@ def test_gallery_readme_names_every_file() -> None:
     assert all(f"`{name}`" in text for name in GALLERY)
 
 
+@pytest.mark.slow
 def test_truncated_and_corrupt_files_give_partial_results(tmp_path: Path) -> None:
     """A cut pcapng and a socat log with garbage lines: messages with file and place, the frames
     before the damage, the unread amount, exit status 1, no traceback."""
@@ -140,6 +142,7 @@ def test_truncated_and_corrupt_files_give_partial_results(tmp_path: Path) -> Non
     assert f"{bad}:5:" in result.stderr
 
 
+@pytest.mark.slow
 def test_cli_errors_are_one_line_messages(tmp_path: Path) -> None:
     """Missing file, unknown content, a --host-is the format does not name: exit 2 and a message."""
     junk = tmp_path / "x.txt"
@@ -150,6 +153,7 @@ def test_cli_errors_are_one_line_messages(tmp_path: Path) -> None:
         assert result.returncode == 2 and words in result.stderr and "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 def test_filters_and_host_override() -> None:
     """--only-violations shows only faulty records, --header 0WP keeps that command and its answer,
     --host-is '<' swaps the sides (then every command is an answer out of place)."""
@@ -164,6 +168,7 @@ def test_filters_and_host_override() -> None:
     assert "unsolicited-answer" in summary["violations"]
 
 
+@pytest.mark.slow
 def test_decoded_jsonl_decodes_again_to_the_same(tmp_path: Path) -> None:
     """Our decoded output is itself a capture: decoding it again gives the same records."""
     first = xac1("decode", "captures/socat-xv.log", "--format", "jsonl")
@@ -174,6 +179,7 @@ def test_decoded_jsonl_decodes_again_to_the_same(tmp_path: Path) -> None:
         [json.loads(line) for line in first.stdout.splitlines()]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["saleae-ascii-host.csv", "saleae-logic2-glitch.csv"])
 def test_saleae_framing_error_is_a_line_error_on_its_frame(name: str) -> None:
     """Saleae files with a framing error (ASCII radix analyzer export; Logic 2 table): the flagged byte
@@ -193,6 +199,7 @@ def test_saleae_framing_error_is_a_line_error_on_its_frame(name: str) -> None:
     assert violations == sorted(gallery.EXPECTED_VIOLATIONS)
 
 
+@pytest.mark.slow
 def test_untimed_capture_says_what_order_cannot_tell() -> None:
     """interceptty without -T has no time: the unanswered 0RV shows as overlapping-command on the next
     0RV, with a detail saying it may as well be a no-answer (README "Decoding captures")."""

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import subprocess
 
+import pytest
 from conftest import xac1
 
 from xac1_proto.sim import SimConfig, serve_pty
+
+pytestmark = pytest.mark.slow  # xac1 send as a subprocess
 
 SIM = "xac1sim://?time_scale=0"
 

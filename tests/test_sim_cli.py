@@ -59,6 +59,7 @@ def control(proc: subprocess.Popen[str], line: str) -> str:
     return proc.stdout.readline()
 
 
+@pytest.mark.slow
 def test_cli_pty_estop_and_log(tmp_path: Path) -> None:
     """Issue 3 "Done when": `xac1 sim --pty` prints the device path first; 0RV answers 0RV100; `estop on`
     on stdin turns the next answer into 0%%0E; --log records every byte both ways."""
@@ -79,6 +80,7 @@ def test_cli_pty_estop_and_log(tmp_path: Path) -> None:
     assert device == b"0RV100\r\n0%%0E\r\n0%%0E\r\n"
 
 
+@pytest.mark.slow
 def test_cli_tcp_and_state_across_runs(tmp_path: Path) -> None:
     """--tcp serves socket:// clients; --state keeps the position table across runs (silent item 16)."""
     state = tmp_path / "table.json"
@@ -92,6 +94,7 @@ def test_cli_tcp_and_state_across_runs(tmp_path: Path) -> None:
         assert transact(port, b"0RP5\r\n") == b"0RP59302012345\r\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("content", ["not json at all", '{"format": "something-else"}',
                                      '{"format": "xac1sim-state", "version": 1, "points": {"1": {"v": 12}}}'])
 def test_cli_refuses_bad_state_file(tmp_path: Path, content: str) -> None:
@@ -104,6 +107,7 @@ def test_cli_refuses_bad_state_file(tmp_path: Path, content: str) -> None:
     assert state.read_text() == content
 
 
+@pytest.mark.slow
 def test_cli_bad_options() -> None:
     """User errors in options are one clear line, never a traceback."""
     for args in (["--tcp", "nope"], ["--pty", "--deviation", "bogus"], ["--pty", "--version", "1.0"],
@@ -127,6 +131,7 @@ while True:
 """
 
 
+@pytest.mark.slow
 def test_state_file_survives_kill_9(tmp_path: Path) -> None:
     """Silent item 16 / issue 3: the state file is written atomically; a writer killed with kill -9 at
     any moment leaves the old or the new table, never a torn file."""
@@ -157,6 +162,7 @@ def test_state_file_errors(tmp_path: Path) -> None:
         load_state(bad)
 
 
+@pytest.mark.slow
 def test_miniterm_session() -> None:
     """Issue 3 "Done when": in pyserial's miniterm (--eol CRLF) a person types 0RV and sees 0RV100;
     `estop on` typed into the simulator turns the next answer into 0%%0E."""

@@ -197,7 +197,7 @@ class TcpRules(DeviceRules):
 
 _MACHINE = settings(max_examples=12, stateful_step_count=25, deadline=None)
 TestPtyRules = _MACHINE(PtyRules).TestCase
-TestTcpRules = _MACHINE(TcpRules).TestCase
+TestTcpRules = pytest.mark.slow(_MACHINE(TcpRules).TestCase)  # seconds: every step over TCP
 TestPtyRules.__doc__ = "Rule machine over the pty: " + (DeviceRules.__doc__ or "")
 TestTcpRules.__doc__ = "Rule machine over TCP: " + (DeviceRules.__doc__ or "")
 

@@ -16,12 +16,15 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 from conftest import xac1
 from sniffer_wire import ScriptedHost, YCable
 
 from xac1_proto.client import Client
 from xac1_proto.recording import read_recording
 from xac1_proto.sim import SimConfig, serve_pty
+
+pytestmark = pytest.mark.slow  # xac1 sniff and xac1 proxy as subprocesses
 
 WAIT_S = 10.0  # an upper bound for anything to happen; never reached unless something is broken
 
