@@ -7,15 +7,14 @@ How this works:
   reason naming the Debian package, or FAILS it when the environment variable ``CI`` is set (any value
   but empty, ``0`` or ``false``): CI never skips a test silently.
 - Hypothesis profiles ``ci`` (derandomized, no deadline, no example database, failing blobs printed)
-  and ``dev`` (random, a database in ``.hypothesis/``, no deadline on this shared machine) are
-  registered here; ``HYPOTHESIS_PROFILE`` picks one, else ``ci`` under CI and ``dev`` otherwise.
+  and ``dev`` (random, a database in ``.hypothesis/``, no deadline either: timing varies with load)
+  are registered here; ``HYPOTHESIS_PROFILE`` picks one, else ``ci`` under CI and ``dev`` otherwise.
 - ``wait_until(predicate, timeout, what)`` replaces sleeping as synchronisation: it polls something the
   test can observe and fails saying what never happened.
 - ``gallery`` is ``captures/make_gallery.py`` (the scripted session, the capture makers).
 - ``xac1(...)`` runs the console script's module as a user does (a real subprocess);
   ``conformance(...)`` runs ``xac1 conformance`` (``failed_checks``/``skipped_checks`` read its JUnit
-  XML); ``read_table(url)`` reads a device's 15 points and
-  its OUT ports through a plain client.
+  XML); ``read_table(url)`` reads a device's 15 points and its OUT ports through a plain client.
 
 Plain helpers are imported by the test modules (``from conftest import xac1``): pytest puts this
 directory on ``sys.path`` (rootdir-relative "prepend" import mode, as for ``sniffer_wire`` and
@@ -78,18 +77,25 @@ def in_ci() -> bool:
     return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
 
 
-def require_tool(*tools: str) -> None:
-    """Skip the running test when a tool is not on PATH (fail instead under CI), naming the package."""
+def missing_tools(tools: list[str] | tuple[str, ...]) -> str | None:
+    """What is missing of ``tools`` and the Debian packages that install it, or None if nothing is."""
     unknown = [t for t in tools if t not in TOOL_PACKAGES]
     if unknown:
         raise ValueError(f"requires_tool: no Debian package known for {', '.join(unknown)} "
                          f"(known: {', '.join(TOOL_PACKAGES)}); add it to TOOL_PACKAGES in tests/conftest.py")
     missing = [t for t in tools if shutil.which(t) is None]
     if not missing:
-        return
+        return None
     packages = sorted({TOOL_PACKAGES[t] for t in missing})
-    what = (f"{', '.join(missing)} not found on PATH "
+    return (f"{', '.join(missing)} not found on PATH "
             f"(Debian package {', '.join(packages)}: sudo apt-get install {' '.join(packages)})")
+
+
+def require_tool(*tools: str) -> None:
+    """Skip the running test when a tool is not on PATH (fail it instead under CI), naming the package."""
+    what = missing_tools(tools)
+    if what is None:
+        return
     if in_ci():
         pytest.fail(f"{what}; CI is set, so this test fails instead of being skipped", pytrace=False)
     pytest.skip(what)
@@ -105,14 +111,23 @@ def _required_tools(item: pytest.Item) -> list[str]:
     return [tool for mark in item.iter_markers("requires_tool") for tool in mark.args]
 
 
-def pytest_runtest_setup(item: pytest.Item) -> None:
-    """Skip before the test's fixtures start anything; under CI the test fails in its call instead."""
-    if not in_ci():
-        require_tool(*_required_tools(item))
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Outside CI a test whose tool is missing is marked skipped (before its fixtures start anything;
+    the skip is reported at the test). An unknown tool name is left for the call to report."""
+    if in_ci():
+        return
+    for item in items:
+        try:
+            what = missing_tools(_required_tools(item))
+        except ValueError:
+            continue
+        if what is not None:
+            item.add_marker(pytest.mark.skip(reason=what))
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_call(item: pytest.Item) -> None:
+    """Under CI a missing tool fails the test here; an unknown tool name fails it anywhere."""
     require_tool(*_required_tools(item))
 
 

@@ -103,11 +103,11 @@ def test_present_tools_run_under_ci(session):
 
 
 def test_unknown_tool_is_an_error_naming_the_table(pytester: pytest.Pytester, session):
-    """A tool with no known package is an error of the test itself, naming where to add it."""
+    """A tool with no known package fails the test, naming where to add it."""
     pytester.makepyfile(test_tools="import pytest\n@pytest.mark.requires_tool('frobnicate')\n"
                                    "def test_x():\n    pass\n")
     r = session()
-    r.assert_outcomes(errors=1)
+    r.assert_outcomes(failed=1)
     r.stdout.fnmatch_lines(["*no Debian package known for frobnicate*TOOL_PACKAGES in tests/conftest.py*"])
 
 
