@@ -97,6 +97,7 @@ def test_every_deviation_is_listed():
     assert set(EXPECTED) == set(DEVIATIONS)
 
 
+@pytest.mark.timeout(600)  # the first one waits for all fifteen runs of the module fixture
 @pytest.mark.parametrize("deviation", sorted(EXPECTED))
 def test_deviation_fails_the_right_check(deviation_runs, deviation):
     """With one stated rule broken ({deviation}), the suite exits 1 and the check of that rule fails."""

@@ -178,9 +178,9 @@ def _silent(host, sim):
     host.send(b"0RP\r\n")  # malformed: the device latches alarm 01 and, with this deviation, says nothing
     wait_until(lambda: sim.call(lambda model, now: model.status(now)["alarm"]), 3, "the device to read 0RP")
     assert sim.call(lambda model, now: model.outbox.next_due) is None, "no answer is on its way"
-    # Not synchronisation but the scenario: this host waits out its own timeout. A host going on sooner
-    # than the sniffer's reorder window after an unanswered malformed line looks, to a two-tap sniffer,
-    # like a host whose next command came after that line's answer (sniffer/order.py).
+    # Not synchronisation but the scenario: this host waits out its own timeout. A command sent sooner
+    # than the reorder window after an unanswered malformed line is held back by the two-tap sniffer
+    # (the line's alarm answer may still come), so that command's answer shows first (sniffer/order.py).
     time.sleep(2 * REORDER_WINDOW_S)
     host.ask(b"0%C\r\n")
 
