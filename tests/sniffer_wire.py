@@ -72,6 +72,8 @@ class YCable:
 
     def _change(self, what: str, d: str) -> None:
         """Runs in the forwarding thread, between two polls."""
+        if what == "sync":
+            return
         if what == "unplug":
             for fd in self._taps.pop(d)[:2]:
                 os.close(fd)
@@ -90,6 +92,12 @@ class YCable:
     def unplug(self, d: str) -> None:
         """The ``d`` tap's pty goes away (its link too); what passes meanwhile is not mirrored."""
         self._request("unplug", d)
+
+    def sync(self) -> None:
+        """Return once the forwarding thread has handled every byte that was readable when called:
+        the first request is taken before a poll that sees those bytes, the second after it."""
+        self._request("sync", "")
+        self._request("sync", "")
 
     def replug(self, d: str) -> None:
         """A new pty for the ``d`` tap, its link re-pointed to it."""

@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
+import pytest
+from conftest import xac1
 
 import xac1_proto
 
-
-def xac1(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "xac1_proto", *args], capture_output=True,
-                          text=True, timeout=60)
+pytestmark = pytest.mark.slow  # xac1 as a subprocess
 
 
 def test_version():
@@ -49,5 +46,6 @@ def test_parse_without_terminator_says_so():
 
 
 def test_bad_hex_is_a_clear_error():
+    """Text that is not hex bytes is bad input, not an invalid frame: a message and exit 1."""
     r = xac1("parse", "3Z", "--hex", "--role", "command")
-    assert r.returncode != 0 and "--hex" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 1 and "--hex" in r.stderr and "Traceback" not in r.stderr

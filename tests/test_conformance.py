@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import conformance
 
 from conformance.model import Model, Point
 from conformance.settings import Settings, SettingsError, parse_safe_range
@@ -61,22 +62,33 @@ def test_model_accepts_the_stated_answers():
     assert m.latched is None
 
 
+def one_problem(problems: list[str], *words: str) -> str:
+    """The single broken rule reported, checked to name it by these words."""
+    assert len(problems) == 1, problems
+    assert all(w in problems[0] for w in words), (words, problems[0])
+    return problems[0]
+
+
 def test_model_names_broken_rules():
     """The reference model reports a broken latch, a wrong 0RC before homing, a position that a move did
-    not reach and a differing echo; silent points (0RC's O) are not judged."""
+    not reach and a differing echo, each as exactly one problem naming that rule; silent points (0RC's
+    O) are not judged."""
     m = _model()
-    assert m.judge(ReadCurrent(), _answer(b"0RC00002000000\r\n"), b"", [])  # not FFFFFF before homing
-    m.judge(b"0XY\r\n", _answer(b"0%%01\r\n"), b"", [])
-    assert m.judge(ReadPoint(n=1), _answer(b"0RP10002000000\r\n"), b"", [])  # latch broken
+    one_problem(m.judge(ReadCurrent(), _answer(b"0RC00002000000\r\n"), b"", []),
+                "0RC before homing", "FFFFFF")
+    assert m.judge(b"0XY\r\n", _answer(b"0%%01\r\n"), b"", []) == []  # malformed: alarm 01 latched
+    one_problem(m.judge(ReadPoint(n=1), _answer(b"0RP10002000000\r\n"), b"", []),
+                "alarm 01 is latched", "0RP")
     m = _model()
     move = MoveDirect(vel=0x3C, a=3, pos=0x100)
     assert m.judge(move, _answer(move.to_bytes()), move.to_bytes(), []) == []
     assert m.judge(ReadCurrent(), _answer(b"0RC00332000100\r\n"), b"", []) == []  # N/V/A/O: silent
-    assert m.judge(ReadCurrent(), _answer(b"0RC00002000200\r\n"), b"", [])  # move not reached
+    one_problem(m.judge(ReadCurrent(), _answer(b"0RC00002000200\r\n"), b"", []), "000200", "000100")
     wrong = b"0WS32\r\n"
-    assert m.judge(WriteOutputs(o=2), _answer(wrong), wrong, [])
+    one_problem(m.judge(WriteOutputs(o=2), _answer(wrong), wrong, []), "0WS echo differs")
 
 
+@pytest.mark.slow
 def test_plugin_is_inert(tmp_path):
     """With no --xac1 option and no checks collected, the plugin adds nothing to a pytest run (no device
     opened, no summary), yet its options are registered."""
@@ -90,6 +102,7 @@ def test_plugin_is_inert(tmp_path):
     assert "--xac1-port" in h.stdout and "--xac1-safe-range" in h.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,words", [
     (["--port", "socket://127.0.0.1:1", "--allow-motion"], "--safe-range"),
     (["--safe-range", "9:1"], "above"),
@@ -97,16 +110,15 @@ def test_plugin_is_inert(tmp_path):
 ])
 def test_cli_usage_errors(tmp_path, args, words):
     """Bad option values give exit status 2 and a one-line reason, never a traceback."""
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", *args], capture_output=True,
-                       text=True, timeout=RUN_TIMEOUT, cwd=tmp_path)
-    assert r.returncode == 2
+    r = conformance(args, tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
     assert words in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.slow
 def test_cli_port_that_does_not_open(tmp_path):
-    """A port that cannot be opened ends the run with the reason, nothing written, a non-zero status."""
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", "--port",
-                        str(tmp_path / "no-such-tty")], capture_output=True, text=True,
-                       timeout=RUN_TIMEOUT, cwd=tmp_path)
-    assert r.returncode not in (0, 1)
+    """A port that cannot be opened ends the run with the reason, nothing written, exit status 3 (the run
+    could not go on: README "Conformance")."""
+    r = conformance(["--port", str(tmp_path / "no-such-tty")], tmp_path)
+    assert r.returncode == 3, r.stdout + r.stderr
     assert "cannot open" in r.stdout + r.stderr and "Traceback" not in r.stdout + r.stderr

@@ -17,6 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from conftest import conformance, failed_checks, read_table, skipped_checks
 
 from conformance.evidence import Probe
 from conformance.settings import SettingsError, parse_points
@@ -28,21 +29,9 @@ from xac1_proto.recording import read_recording
 from xac1_proto.sim import DeviceModel, SimConfig, serve_tcp
 from xac1_proto.sim.model import PointData
 
-RUN_TIMEOUT = 90
 # Points holding data before the run (the state file): the only ones the suite may write back.
 HELD = {3: (5, 2, 1, 0x400), 7: (9, 3, 0, 0x800)}
 MOTION = ["--allow-motion", "--safe-range", "0:0x1000"]
-
-
-def conformance(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=RUN_TIMEOUT)
-
-
-def read_table(url: str) -> dict[int, tuple[int, int, int, int]]:
-    """All 15 points through a separate client (V, A, O, Pos)."""
-    with Client(url, timeout=2) as c:
-        return {n: (a.v, a.a, a.o, a.pos) for n in range(1, 16) for a in [c.read_point(n)]}
 
 
 @pytest.fixture
@@ -77,6 +66,7 @@ def written_points(log: Path) -> set[int]:
     return found - {0}
 
 
+@pytest.mark.slow
 def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     """On a real device (not xac1sim://) the suite writes only points that held data, restores them
     exactly, leaves never-written points never written (docs/protocol.md silent item 6), and skips the checks
@@ -88,7 +78,7 @@ def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     after = read_table(url)
     assert r.returncode == 0, r.stdout[-4000:]
     assert after == before
-    assert {n for n, (v, a, _o, _p) in after.items() if v and a} == set(HELD)
+    assert {n for n, (v, a, _o, _p) in after.points.items() if v and a} == set(HELD)
     assert written_points(log) == set(HELD)  # and nothing else was ever written, even for a moment
     text = report.read_text()
     for where in (r.stdout, text):
@@ -100,22 +90,25 @@ def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     assert {int(k, 16): (p["v"], p["a"], p["o"], p["pos"]) for k, p in saved.items()} == HELD
 
 
+@pytest.mark.slow
 def test_scratch_points_lets_the_checks_run(sim_process, tmp_path):
     """With --scratch-points the named points are used first, so the checks that need more points run;
     points that held data are still restored and the report names the never-written ones it changed."""
     url, _state, log = sim_process
     before = read_table(url)
     report = tmp_path / "r.md"
+    junit = tmp_path / "junit.xml"
     r = conformance(["--port", url, *MOTION, "--scratch-points", "1,2", "--report", str(report),
-                     "-k", "store_current or point_move_carries_n or read_back"], tmp_path)
+                     "-k", "store_current or point_move_carries_n or read_back", "--junitxml", str(junit)],
+                    tmp_path)
     after = read_table(url)
     assert r.returncode == 0, r.stdout[-4000:]
-    assert "skipped" not in r.stdout.splitlines()[-1] or " 0 skipped" in r.stdout.splitlines()[-1]
+    assert skipped_checks(junit) == {} and not failed_checks(junit)
     text = report.read_text()
     assert "| store_current |" in text and "| point_move_carries_n |" in text and "SKIP" not in text
     assert written_points(log) <= {1, 2, *HELD} and {1, 2} <= written_points(log)
-    assert {n: after[n] for n in HELD} == {n: before[n] for n in HELD}
-    assert all(after[n] == before[n] for n in range(4, 16) if n != 7)
+    assert {n: after.points[n] for n in HELD} == {n: before.points[n] for n in HELD}
+    assert all(after.points[n] == before.points[n] for n in range(4, 16) if n != 7)
     assert "point 1 was never written before the run" in text
 
 
@@ -132,6 +125,7 @@ def _held_model() -> DeviceModel:
     return DeviceModel(SimConfig(time_scale=0), {n: PointData(*d) for n, d in HELD.items()})
 
 
+@pytest.mark.slow
 def test_position_restored(tmp_path):
     """An axis homed and inside the safe range at the start is moved back there at the end (0MV at a
     gentle speed) and 0RC confirms it; the report says so and that mode 1 is left on purpose."""
@@ -152,6 +146,7 @@ def test_position_restored(tmp_path):
     assert "does not send 0CM0" in text and "--restore-mode0" in text
 
 
+@pytest.mark.slow
 def test_position_not_known_is_reported(tmp_path):
     """An axis not homed at the start (0RC answers FFFFFF) cannot be put back: the safety section says the
     position was not restored and why."""
@@ -165,6 +160,7 @@ def test_position_not_known_is_reported(tmp_path):
     assert "axis position not restored" in r.stdout
 
 
+@pytest.mark.slow
 def test_restore_mode0_sends_0cm0_last(tmp_path):
     """--restore-mode0 sends 0CM0 as the run's last command: the controller ends in mode 0."""
     with serve_tcp(model=_held_model()) as sim:
@@ -205,6 +201,7 @@ def silent_port() -> Iterator[str]:
         srv.close()
 
 
+@pytest.mark.slow
 def test_no_answer_ends_quickly_with_a_verdict(silent_port, tmp_path):
     """A device that answers nothing ends the run after the first probes with "no answer from the device"
     (exit status 3), a summary on the terminal and the report: no list of failures, nothing written."""

@@ -12,20 +12,18 @@ from __future__ import annotations
 import re
 import selectors
 import socket
-import subprocess
-import sys
 import threading
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
+from conftest import conformance, read_table
 
-from xac1_proto.client import Client
 from xac1_proto.frames import AlarmReset, ReadVersion
 from xac1_proto.sim import DeviceModel, SimConfig, serve_tcp
 from xac1_proto.sim.model import PointData
 
-RUN_TIMEOUT = 60  # seconds: a run that hangs fails the test instead of hanging it
+pytestmark = pytest.mark.slow  # whole conformance runs in a subprocess
+
 HELD = {3: (5, 2, 1, 0x400), 7: (9, 3, 0, 0x800)}  # points holding data before the run (restorable)
 MOTION = ["--allow-motion", "--safe-range", "0:0x1000"]
 LIVENESS = (AlarmReset().to_bytes(), ReadVersion().to_bytes())  # what the suite sends to see if it is alive
@@ -113,16 +111,6 @@ def device() -> Iterator[tuple[str, tuple[str, int]]]:
         yield sim.url, ("127.0.0.1", sim.port)
 
 
-def conformance(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=RUN_TIMEOUT)
-
-
-def read_table(url: str) -> dict[int, tuple[int, int, int, int]]:
-    with Client(url, timeout=2) as c:
-        return {n: (a.v, a.a, a.o, a.pos) for n in range(1, 16) for a in [c.read_point(n)]}
-
-
 # The simulator answers 63 commands: the snapshot, the first checks (alarm_latched[0MP] writes point 3
 # and homes the axis) and the first command of alarm_latched[0WP]; its next command meets the silence.
 ANSWERED = 63
@@ -161,7 +149,7 @@ def test_device_stops_answering_mid_run(device, tmp_path):
     assert "not verified: point 3, written during the run; it held V=5 A=2 O=1 Pos=0x000400 before" in safety
     assert "not verified: the axis position, moved during the run" in safety
     assert "restored to" not in safety and "unchanged" not in safety
-    assert read_table(url)[3] != HELD[3]  # and indeed: the device was left as the run left it
+    assert read_table(url).points[3] != HELD[3]  # and indeed: the device was left as the run left it
 
 
 def test_device_comes_back_before_the_end(device, tmp_path):

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import os
-import re
 import subprocess
+import re
 import sys
 
 import pexpect
 import pytest
+from conftest import xac1
 
 from xac1_proto import frames as fr
 from xac1_proto.console.commands import UsageError, help_text, parse_line
@@ -59,6 +60,7 @@ def spawn_console(*args: str) -> pexpect.spawn:
                          timeout=10, encoding="utf-8", dimensions=(40, 200), env=env)
 
 
+@pytest.mark.slow
 def test_console_session_through_a_pty():
     """A short session as a person types it: help, tab completion, point data, a refused and a
     confirmed move, an alarm with its meaning, reset, history recall, a usage error, status, quit."""
@@ -98,28 +100,28 @@ def test_console_session_through_a_pty():
     assert "> '0MP0' CR LF" in transcript and "> '0MP1'" not in transcript  # the refused move: not sent
 
 
+@pytest.mark.slow
 def test_console_reads_piped_stdin():
     """Without a terminal the console reads plain lines (a script can drive it); moves still ask, and
     the answer is read from the next line; --yes skips the question."""
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "console", "--port", SIM],
-                       input="version\nhome\nn\ngo vel=30 a=2 pos=5000\ny\nread 1\n", capture_output=True,
-                       text=True, timeout=30)
+    r = xac1("console", "--port", SIM, stdin="version\nhome\nn\ngo vel=30 a=2 pos=5000\ny\nread 1\n",
+             timeout=30)
     assert r.returncode == 0, r.stderr
     assert "0RV answer" in r.stdout and "not sent" in r.stdout
     assert "0MV answer vel=1E (30) A=2 Pos=0x001388 (5000)" in r.stdout and "0RP answer N=1" in r.stdout
     assert "0MP answer" not in r.stdout
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "console", "--port", SIM, "--yes"],
-                       input="home\n", capture_output=True, text=True, timeout=30)
+    r = xac1("console", "--port", SIM, "--yes", stdin="home\n", timeout=30)
     assert r.returncode == 0 and "go ahead" not in r.stdout and "0MP answer N=0" in r.stdout
 
 
+@pytest.mark.slow
 def test_console_bad_port_is_a_clear_error():
     """A port that cannot be opened: one line naming it, exit 4, no traceback."""
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "console", "--port", "xac1sim://?bogus=1"],
-                       input="", capture_output=True, text=True, timeout=30)
+    r = xac1("console", "--port", "xac1sim://?bogus=1", timeout=30)
     assert r.returncode == 4 and "cannot open" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.slow
 def test_history_file_survives_sessions_and_ctrl_c_clears_the_line(tmp_path):
     """--history FILE keeps typed lines across sessions (up arrow recalls them); Ctrl-C at the prompt
     drops the line being typed and keeps the console running; Ctrl-D leaves with status 0."""

@@ -10,18 +10,16 @@ import re
 import shutil
 import struct
 import subprocess
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from conftest import CAPTURES, xac1
 
 from sniffer.analyzer import analyze
 from sniffer.io.registry import Capture, detect
 
-ROOT = Path(__file__).resolve().parent.parent
-CAPTURES = ROOT / "captures"
 PARTNERS = {"saleae-host.csv": "saleae-device.csv", "saleae-ascii-host.csv": "saleae-ascii-device.csv",
             "raw-host.bin": "raw-device.bin"}
 GALLERY = sorted(p.name for p in CAPTURES.iterdir() if p.is_file() and p.suffix != ".py"
@@ -122,10 +120,10 @@ def decode_in_process(paths: list[Path]) -> dict[str, list[bytes]]:
 
 
 def run_decode(path: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "xac1_proto", "decode", str(path), "--format", "jsonl"],
-                          capture_output=True, text=True, timeout=60, cwd=path.parent)
+    return xac1("decode", str(path), "--format", "jsonl", cwd=path.parent)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", GALLERY)
 def test_damaged_gallery_file_gives_located_messages_and_partial_results(tmp_path: Path,
                                                                          name: str) -> None:

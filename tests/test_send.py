@@ -5,14 +5,18 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+from conftest import xac1
+
 from xac1_proto.sim import SimConfig, serve_pty
+
+pytestmark = pytest.mark.slow  # xac1 send as a subprocess
 
 SIM = "xac1sim://?time_scale=0"
 
 
 def send(port: str, *commands: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "xac1_proto", "send", "--port", port, *commands],
-                          capture_output=True, text=True, timeout=30)
+    return xac1("send", "--port", port, *commands, timeout=30)
 
 
 def test_send_over_a_pty_prints_both_directions_decoded():
@@ -54,8 +58,7 @@ def test_send_malformed_probe_shows_the_alarm():
 
 def test_send_timeout_exits_3():
     """Silence: a clear timeout message, exit 3."""
-    r = subprocess.run([sys.executable, "-m", "xac1_proto", "send", "--port", SIM + "&drop=1",
-                        "--timeout", "0.1", "0RV"], capture_output=True, text=True, timeout=30)
+    r = send(SIM + "&drop=1", "--timeout", "0.1", "0RV")
     assert r.returncode == 3 and "timeout: no answer to '0RV' CR LF within" in r.stderr
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 import serial
+from conftest import xac1
 
 from xac1_proto.recording import read_recording
 from xac1_proto.sim.model import PointData
@@ -58,6 +59,7 @@ def control(proc: subprocess.Popen[str], line: str) -> str:
     return proc.stdout.readline()
 
 
+@pytest.mark.slow
 def test_cli_pty_estop_and_log(tmp_path: Path) -> None:
     """Issue 3 "Done when": `xac1 sim --pty` prints the device path first; 0RV answers 0RV100; `estop on`
     on stdin turns the next answer into 0%%0E; --log records every byte both ways."""
@@ -78,6 +80,7 @@ def test_cli_pty_estop_and_log(tmp_path: Path) -> None:
     assert device == b"0RV100\r\n0%%0E\r\n0%%0E\r\n"
 
 
+@pytest.mark.slow
 def test_cli_tcp_and_state_across_runs(tmp_path: Path) -> None:
     """--tcp serves socket:// clients; --state keeps the position table across runs (silent item 16)."""
     state = tmp_path / "table.json"
@@ -91,25 +94,25 @@ def test_cli_tcp_and_state_across_runs(tmp_path: Path) -> None:
         assert transact(port, b"0RP5\r\n") == b"0RP59302012345\r\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("content", ["not json at all", '{"format": "something-else"}',
                                      '{"format": "xac1sim-state", "version": 1, "points": {"1": {"v": 12}}}'])
 def test_cli_refuses_bad_state_file(tmp_path: Path, content: str) -> None:
     """A corrupt or foreign state file gives a clear error (exit 2, no traceback) and is left untouched."""
     state = tmp_path / "table.json"
     state.write_text(content)
-    proc = subprocess.run([sys.executable, "-m", "xac1_proto", "sim", "--pty", "--state", str(state)],
-                          capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
+    proc = xac1("sim", "--pty", "--state", str(state), timeout=30)
     assert proc.returncode == 2
     assert str(state) in proc.stderr and "Traceback" not in proc.stderr
     assert state.read_text() == content
 
 
+@pytest.mark.slow
 def test_cli_bad_options() -> None:
     """User errors in options are one clear line, never a traceback."""
     for args in (["--tcp", "nope"], ["--pty", "--deviation", "bogus"], ["--pty", "--version", "1.0"],
                  ["--pty", "--option", "colour=red"]):
-        proc = subprocess.run([sys.executable, "-m", "xac1_proto", "sim", *args], capture_output=True,
-                              text=True, timeout=30, stdin=subprocess.DEVNULL)
+        proc = xac1("sim", *args, timeout=30)
         assert proc.returncode == 2, args
         assert "error:" in proc.stderr and "Traceback" not in proc.stderr, args
 
@@ -128,6 +131,7 @@ while True:
 """
 
 
+@pytest.mark.slow
 def test_state_file_survives_kill_9(tmp_path: Path) -> None:
     """Silent item 16 / issue 3: the state file is written atomically; a writer killed with kill -9 at
     any moment leaves the old or the new table, never a torn file."""
@@ -158,6 +162,7 @@ def test_state_file_errors(tmp_path: Path) -> None:
         load_state(bad)
 
 
+@pytest.mark.slow
 def test_miniterm_session() -> None:
     """Issue 3 "Done when": in pyserial's miniterm (--eol CRLF) a person types 0RV and sees 0RV100;
     `estop on` typed into the simulator turns the next answer into 0%%0E."""

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import os
 import select
-import shutil
 import socket
 import subprocess
 import termios
@@ -199,7 +198,7 @@ class TcpRules(DeviceRules):
 
 _MACHINE = settings(max_examples=12, stateful_step_count=25, deadline=None)
 TestPtyRules = _MACHINE(PtyRules).TestCase
-TestTcpRules = _MACHINE(TcpRules).TestCase
+TestTcpRules = pytest.mark.slow(_MACHINE(TcpRules).TestCase)  # seconds: every step over TCP
 TestPtyRules.__doc__ = "Rule machine over the pty: " + (DeviceRules.__doc__ or "")
 TestTcpRules.__doc__ = "Rule machine over TCP: " + (DeviceRules.__doc__ or "")
 
@@ -266,7 +265,7 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-@pytest.mark.skipif(shutil.which("socat") is None, reason="socat not installed (.ci/run installs it)")
+@pytest.mark.requires_tool("socat")
 def test_socat_bridges_pty_to_tcp() -> None:
     """socat (a real third-party tool) bridges the simulator's pty to a TCP port; a socket:// client
     gets the device's answers through it."""

@@ -11,10 +11,12 @@ from collections import Counter
 from dataclasses import replace
 
 import pytest
+from conftest import wait_until
 from sniffer_wire import ScriptedHost, YCable
 
 from sniffer.analyzer import Analyzer
 from sniffer.live import Clock, Session, sniff
+from sniffer.order import REORDER_WINDOW_S
 from sniffer.records import FrameRecord
 from sniffer.taps import ReadOnlyPort, TapWriteError
 from xac1_proto.client import Client
@@ -58,10 +60,8 @@ def line(config: SimConfig | None = None):
         try:
             yield sim, cable, view
         finally:
-            deadline = time.monotonic() + 3
-            while time.monotonic() < deadline and any(
-                    analyzer.bytes_in(d) < cable.mirrored[d] for d in ("host", "device")):
-                time.sleep(0.02)
+            wait_until(lambda: all(analyzer.bytes_in(d) >= cable.mirrored[d] for d in ("host", "device")),
+                       3, "the sniffer to read every byte mirrored onto the taps")
             stop.set()
             thread.join(5)
             assert not thread.is_alive()
@@ -112,7 +112,8 @@ def _back_to_back(host, sim):
 
 def _during_move(host, sim):
     host.send(b"0MP0\r\n")
-    time.sleep(0.05)
+    wait_until(lambda: sim.call(lambda model, now: model.status(now)["moving"]), 3,
+               "the homing move to start")
     host.send(b"0RC\r\n")  # discarded by the device during the move (silent item 10)
     host.read_lines(1)
     host.ask(b"0RC\r\n")
@@ -174,8 +175,13 @@ def _estop(host, sim):
 
 
 def _silent(host, sim):
-    host.send(b"0RP\r\n")
-    time.sleep(0.3)
+    host.send(b"0RP\r\n")  # malformed: the device latches alarm 01 and, with this deviation, says nothing
+    wait_until(lambda: sim.call(lambda model, now: model.status(now)["alarm"]), 3, "the device to read 0RP")
+    assert sim.call(lambda model, now: model.outbox.next_due) is None, "no answer is on its way"
+    # Not synchronisation but the scenario: this host waits out its own timeout. A command sent sooner
+    # than the reorder window after an unanswered malformed line is held back by the two-tap sniffer
+    # (the line's alarm answer may still come), so that command's answer shows first (sniffer/order.py).
+    time.sleep(2 * REORDER_WINDOW_S)
     host.ask(b"0%C\r\n")
 
 
@@ -221,5 +227,5 @@ def test_tap_is_receive_only(tmp_path):
                 os.write(port.fileno(), b"x")
         finally:
             port.close()
-        time.sleep(0.1)
+        cable.sync()
         assert cable.tap_writes == {"host": b"", "device": b""}
