@@ -57,6 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default 5)")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text view (default: when the output is a terminal)")
+    p.add_argument("--annotate", metavar="OUT.pcapng", default=None,
+                   help="also write the capture as pcapng for Wireshark, every verdict as a packet comment")
 
 
 def _error(message: str) -> int:
@@ -112,19 +114,27 @@ def _decode(capture: Capture, args: argparse.Namespace) -> int:
     if args.storm_limit is not None:
         options["storm_limit"] = args.storm_limit
     analyzer = Analyzer(**options)
+    annotate = _annotated(args, capture)
     color = args.color
     view = make_view("text" if args.format == "summary" else args.format, sys.stdout, color)
     show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
     progress = _Progress(capture) if sys.stderr.isatty() and capture.size >= PROGRESS_MIN_BYTES else None
     violations = 0
     for chunk in capture:
-        for record in analyzer.feed(chunk):
+        records = analyzer.feed(chunk)
+        if annotate is not None:
+            annotate.write(chunk, records)
+        for record in records:
             violations += bool(record.violations)
             if show is not None and show(record):
                 view.write(record)
         if progress is not None:
             progress.update()
-    for record in analyzer.close():
+    records = analyzer.close()
+    if annotate is not None:
+        annotate.verdicts(records)
+        annotate.close()
+    for record in records:
         violations += bool(record.violations)
         if show is not None and show(record):
             view.write(record)
@@ -146,6 +156,15 @@ def _decode(capture: Capture, args: argparse.Namespace) -> int:
     if report.total_problems or report.unread_bytes or report.unread_lines:
         print(f"xac1 decode: {capture.format}: {report.summary()}; the rest was decoded", file=sys.stderr)
     return 1 if violations or report.total_problems else 0
+
+
+def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
+    """``--annotate``: the pcapng recorder (``sniffer.io.pcapng_writer``), or None."""
+    if args.annotate is None:
+        return None
+    from .io.pcapng_writer import PcapngRecorder
+
+    return PcapngRecorder(args.annotate, source=f"xac1 decode {' '.join(args.files)} ({capture.format})")
 
 
 def _partner(path: str) -> str | None:

@@ -12,7 +12,8 @@ def add_common_output(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--format", choices=("text", "jsonl"), default="text",
                         help="text: a colour line per frame (default); jsonl: one JSON object a line")
     parser.add_argument("--record", metavar="FILE",
-                        help="also write every chunk to FILE (JSON lines recording, readable by xac1 decode)")
+                        help="also write every chunk to FILE: FILE.pcapng for Wireshark (verdicts as packet "
+                             "comments), else our JSON lines recording; both read by xac1 decode")
     parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
                         help="no-answer timeout in seconds after a command's last byte; moves get their "
                              "estimated time doubled on top (default 1.0)")
@@ -37,9 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def make_session(args: argparse.Namespace, source: str):  # -> live.Session (import kept lazy)
     import sys
 
-    from xac1_proto.recording import RecordingWriter
-
     from .analyzer import Analyzer
+    from .io.pcapng_writer import open_recording
     from .live import Session
     from .view import make_view
 
@@ -50,7 +50,9 @@ def make_session(args: argparse.Namespace, source: str):  # -> live.Session (imp
     recorder = None
     if args.record:
         try:
-            recorder = RecordingWriter(args.record, source=source)
+            settings = (f"baud {getattr(args, 'baud', 9600)}, timeout {args.timeout} s, "
+                        f"storm limit {args.storm_limit}")
+            recorder = open_recording(args.record, f"{source} ({settings})")
         except OSError as exc:
             raise ValueError(f"cannot write the recording {args.record}: {exc.strerror}") from None
     analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit)

@@ -32,7 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--turnaround", type=float, metavar="MS", help="answer turnaround (default 2 ms)")
     parser.add_argument("--stroke", metavar="LO:HI", help="positions a move may reach (default 0:0xFFFFFE)")
     parser.add_argument("--state", metavar="FILE", help="keep the position table in FILE across runs")
-    parser.add_argument("--log", metavar="FILE", help="record every byte both ways (recording format)")
+    parser.add_argument("--log", metavar="FILE", help="record every byte both ways: FILE.pcapng for "
+                        "Wireshark (with verdicts), else our JSON lines recording")
     parser.add_argument("--seed", type=int, help="seed for the line faults")
     parser.add_argument("--noise", type=float, metavar="P",
                         help="corrupt each answer byte with probability P")
@@ -116,10 +117,11 @@ def run(args: argparse.Namespace) -> int:
 
     writer = None
     if args.log:
+        from sniffer.io.pcapng_writer import open_recording  # a shell: the recorders live with the sniffer
+
         from ..chunk import Chunk
-        from ..recording import RecordingWriter
         try:
-            writer = RecordingWriter(args.log, source=f"xac1 sim ({'pty' if args.pty else 'tcp'})")
+            writer = open_recording(args.log, f"xac1 sim ({'pty' if args.pty else 'tcp'})", analyze=True)
         except OSError as exc:
             return _fail(f"cannot write the log {args.log}: {exc}")
 
