@@ -16,7 +16,8 @@ Verdicts (docs/protocol.md "Violation codes") travel as packet comments (``opt_c
 each, on the packet that completes the frame: ``xac1 #I CODE (SIDE): SENTENCE`` per violation of record
 ``I`` (``SIDE``: whose fault, ``host`` or ``device``) and ``xac1 #I reply_to=#J latency_ms=MS`` on an
 answer. A verdict found later (``no-answer`` when its deadline passes) goes on the packet being written
-with the chunk that revealed it, or on an empty packet of its own (``verdicts()``). The dissector
+with the chunk that revealed it, or on an empty ``STATUS_CHANGE`` (0x00) packet of its own
+(``verdicts()``: it carries no direction and no data). The dissector
 (``sniffer/wireshark``) turns the comments into ``xac1.violation``, ``xac1.reply_to``,
 ``xac1.latency_ms`` and expert info.
 
@@ -47,7 +48,7 @@ LINKTYPE_RTAC_SERIAL: Final = 250
 RTAC_HEADER: Final = struct.Struct(">IIBBH")  # seconds, microseconds, event, control lines, footer
 EVENT_TX: Final = 0x01  # DATA_TX_START: the host's bytes
 EVENT_RX: Final = 0x02  # DATA_RX_START: the controller's bytes
-EVENT_TX_END: Final = 0x03  # an empty packet carrying verdicts found later
+EVENT_STATUS: Final = 0x00  # STATUS_CHANGE: an empty packet carrying verdicts found later
 EVENT_FRAMING_ERROR: Final = 0x07
 EVENT_PARITY_ERROR: Final = 0x08
 TSRESOL_US: Final = 6  # if_tsresol: 10^-6 s
@@ -162,7 +163,7 @@ class PcapngRecorder:
         notes = [c for r in records for c in comments(r)]
         if notes:
             when = t if t is not None else next((r.t for r in records if r.t is not None), None)
-            self._packet(when, EVENT_TX_END, b"", notes)
+            self._packet(when, EVENT_STATUS, b"", notes)
             self._flush()
 
     def close(self) -> None:
