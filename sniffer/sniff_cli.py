@@ -52,7 +52,8 @@ def make_session(args: argparse.Namespace, source: str):  # -> live.Session (imp
         try:
             settings = (f"baud {getattr(args, 'baud', 9600)}, timeout {args.timeout} s, "
                         f"storm limit {args.storm_limit}")
-            recorder = open_recording(args.record, f"{source} ({settings})")
+            recorder = open_recording(args.record, f"{source} ({settings})",
+                                      fmt=getattr(args, "record_format", None))  # extcap: a FIFO
         except OSError as exc:
             raise ValueError(f"cannot write the recording {args.record}: {exc.strerror}") from None
     analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit)

@@ -241,12 +241,13 @@ def is_pcapng(path: str | os.PathLike[str]) -> bool:
     return str(path).lower().endswith(PCAPNG_SUFFIXES)
 
 
-def open_recording(path: str | os.PathLike[str], source: str = "", analyze: bool = False) -> Recorder:
+def open_recording(path: str | os.PathLike[str], source: str = "", analyze: bool = False,
+                   fmt: str | None = None) -> Recorder:
     """The recording for ``path``, by suffix: ``.pcapng`` -> pcapng (Wireshark), anything else -> our
-    JSON lines recording. ``source`` names the tool's ports and settings (the section comment).
-    ``analyze``: the caller has no analyzer, so a pcapng recording runs one to carry the verdicts.
-    Raises ``OSError``."""
-    if is_pcapng(path):
+    JSON lines recording (``fmt`` "pcapng" or "jsonl" overrides: a FIFO's name says nothing).
+    ``source`` names the tool's ports and settings (the section comment). ``analyze``: the caller has
+    no analyzer, so a pcapng recording runs one to carry the verdicts. Raises ``OSError``."""
+    if fmt == "pcapng" or (fmt is None and is_pcapng(path)):
         recorder = PcapngRecorder(path, source=source)
         return AnalyzingRecorder(recorder) if analyze else recorder
     return JsonlRecorder(path, source=source)

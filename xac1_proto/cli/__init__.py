@@ -23,6 +23,8 @@ COMMANDS: Final[dict[str, str]] = {
     "sniff": "sniffer.sniff_cli",
     "proxy": "sniffer.proxy_cli",
     "decode": "sniffer.decode_cli",
+    "wireshark": "xac1_proto.cli.wireshark_cmd",
+    "extcap": "xac1_proto.cli.extcap_cmd",
 }
 
 
