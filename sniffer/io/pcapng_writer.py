@@ -32,6 +32,7 @@ own buffering, while a recorder must flush each block as written. Reading stays 
 from __future__ import annotations
 
 import os
+import stat
 import struct
 import time
 from collections.abc import Iterable, Sequence
@@ -104,6 +105,7 @@ class PcapngRecorder:
     def __init__(self, path: str | os.PathLike[str], source: str = "", started: float | None = None) -> None:
         self.path = Path(path)
         self._f: IO[bytes] = open(self.path, "wb")  # noqa: SIM115 - closed by close()
+        self._syncable = stat.S_ISREG(os.fstat(self._f.fileno()).st_mode)  # not a FIFO (extcap)
         self._last_sync = time.monotonic()
         self._last_t = time.time() if started is None else started
         self._last_dir: str | None = None
@@ -127,7 +129,7 @@ class PcapngRecorder:
     def _flush(self) -> None:
         self._f.flush()
         now = time.monotonic()
-        if now - self._last_sync >= FSYNC_EVERY_S:
+        if self._syncable and now - self._last_sync >= FSYNC_EVERY_S:
             os.fsync(self._f.fileno())
             self._last_sync = now
 
@@ -168,9 +170,12 @@ class PcapngRecorder:
 
     def close(self) -> None:
         if not self._f.closed:
-            self._f.flush()
-            os.fsync(self._f.fileno())
-            self._f.close()
+            try:
+                self._f.flush()
+                if self._syncable:
+                    os.fsync(self._f.fileno())
+            finally:
+                self._f.close()
 
     def __enter__(self) -> PcapngRecorder:
         return self

@@ -123,7 +123,10 @@ def capture(args: argparse.Namespace) -> int:
     shell_args = p.parse_args(argv)
     shell_args.record_format = "pcapng"  # the FIFO's name says nothing of the format
     with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):
-        return int(module.run(shell_args) or 0)
+        try:
+            return int(module.run(shell_args) or 0)
+        except BrokenPipeError:  # Wireshark stopped reading the FIFO: the capture is over
+            return 0
 
 
 def run(args: argparse.Namespace) -> int:
