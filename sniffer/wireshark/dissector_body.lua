@@ -36,7 +36,7 @@ for _, v in pairs(field_pf) do list[#list + 1] = v end
 xac1.fields = list
 
 local vf = {
-  record = ProtoField.uint32("xac1.record", "Record number (xac1 decode's i)"),
+  record = ProtoField.uint32("xac1.record", "Record with the violation (xac1 decode's i)"),
   violation = ProtoField.string("xac1.violation", "Violation"),
   side = ProtoField.string("xac1.side", "Whose fault"),
   detail = ProtoField.string("xac1.detail", "Detail"),
@@ -325,12 +325,14 @@ local function add_event(tree, tvb, pinfo, ev, info)
     local t = tree:add(xac1, range, "XA-C1 junk (" .. ev.reason .. "): " .. show_text(ev.raw))
     t:add(pf.junk, range)
     t:add(pf.junk_reason, ev.reason)
+    t:add(pf.check, "garbage")
     t:add_proto_expert_info(check_expert["garbage"], #ev.raw .. " bytes that form no frame (" .. ev.reason .. ")")
     info[#info + 1] = "junk"
     return
   end
   local role = ev.dir == "host" and "command" or "answer"
   local fs, values, places, ok, found = diagnose(ev.raw, role)
+  if not ok then values = {} end  -- as xac1 decode: no fields when one cannot be read
   local summary = (fs and fs.header or "?") .. " " .. role
   for _, name in ipairs(fs and fs.fields or {}) do
     if values[name] ~= nil then
@@ -361,9 +363,13 @@ local function add_event(tree, tvb, pinfo, ev, info)
   else
     t:add(pf.role, role)
   end
-  for _, v in ipairs(found) do
-    t:add(pf.check, v.code)
-    t:add_proto_expert_info(check_expert[v.code], v.code .. ": " .. v.text)
+  local said = {}
+  for _, v in ipairs(found) do  -- each code once a frame, as xac1 decode lists them
+    if not said[v.code] then
+      said[v.code] = true
+      t:add(pf.check, v.code)
+      t:add_proto_expert_info(check_expert[v.code], v.code .. ": " .. v.text)
+    end
   end
   info[#info + 1] = summary .. (#found > 0 and (" [" .. found[1].code .. (#found > 1 and ", ..." or "") .. "]") or "")
 end
@@ -427,8 +433,7 @@ function verdicts.dissector(tvb, pinfo, tree)
       else
         local r, j, rest = text:match("^xac1 #(%d+) reply_to=#(%d+)(.*)$")
         if r then
-          sub:add(vf.record, tvb(0, 0), tonumber(r))
-          sub:add(vf.reply_to, tvb(0, 0), tonumber(j))
+          sub:add(vf.reply_to, tvb(0, 0), tonumber(j)):append_text(" (this is record #" .. r .. ")")
           local ms = rest:match("latency_ms=([%d%.]+)")
           if ms then sub:add(vf.latency_ms, tvb(0, 0), tonumber(ms)) end
         end
