@@ -213,6 +213,18 @@ def test_dissector_equals_decoder_frame_by_frame(tmp_path):
     assert done.stdout.split() == ["0x03"]
 
 
+def test_user0_files_dissect_the_same(tmp_path):
+    """A file whose link type is USER0 (147) with the RTAC serial header (editcap -T user0) dissects
+    exactly as the RTAC serial original."""
+    path, user0 = tmp_path / "s.pcapng", tmp_path / "u0.pcapng"
+    write_annotated(path, session_chunks())
+    subprocess.run(["editcap", "-T", "user0", str(path), str(user0)], check=True, capture_output=True,
+                   timeout=60)
+    assert "USER 0" in subprocess.run(["capinfos", str(user0)], capture_output=True, text=True,
+                                      timeout=60).stdout
+    assert dissect(user0) == dissect(path)
+
+
 def test_alarm_name_and_field_meanings_in_the_tree(tmp_path):
     """The tree names the alarm and gives each field's meaning."""
     path = tmp_path / "a.pcapng"

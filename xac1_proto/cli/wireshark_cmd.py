@@ -22,6 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from sniffer.wireshark.install import InstallError, folders, install, uninstall
+    from sniffer.wireshark.luagen import shipped_path
 
     where = folders(profile=args.profile)
     if args.action == "path":
@@ -30,6 +31,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"Decode As file:  {where.decode_as}")
         print(f"Lua plugins:     {where.lua_plugins}")
         print(f"extcap:          {where.extcap}")
+        print(f"dissector:       {shipped_path()} (shipped; install copies it)")
         return 0
     try:
         done = uninstall(where) if args.uninstall else install(where)
