@@ -213,6 +213,26 @@ def test_dissector_equals_decoder_frame_by_frame(tmp_path):
     assert done.stdout.split() == ["0x03"]
 
 
+@settings(max_examples=15, deadline=None)
+@given(cuts=st.lists(st.integers(min_value=1, max_value=15), min_size=1, max_size=40),
+       noise=st.lists(st.binary(min_size=1, max_size=6), max_size=3))
+def test_dissector_framing_equals_the_framer_whatever_the_chunking(tmp_path_factory, cuts, noise):
+    """The Lua framer (a port of xac1_proto/framer.py) cuts any chunking of the session's bytes, with
+    noise in between, into the frames and junk our decoder finds, in the same packets."""
+    host = b"".join(d for _, side, d in SESSION if side == HOST) + b"".join(noise)
+    device = b"".join(d for _, side, d in SESSION if side == DEVICE)
+    chunks, t = [], T0
+    for side, data in ((HOST, host), (DEVICE, device)):
+        at, k = 0, 0
+        while at < len(data):
+            n = cuts[k % len(cuts)]
+            chunks.append(Chunk(t, side, data[at:at + n]))
+            at, k, t = at + n, k + 1, t + 0.001
+    path = tmp_path_factory.mktemp("chunking") / "c.pcapng"
+    write_annotated(path, chunks)
+    assert assert_frames_match(path) >= 29
+
+
 def test_user0_files_dissect_the_same(tmp_path):
     """A file whose link type is USER0 (147) with the RTAC serial header (editcap -T user0) dissects
     exactly as the RTAC serial original."""
