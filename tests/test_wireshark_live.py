@@ -143,6 +143,8 @@ def test_sim_log_pcapng_carries_the_verdicts(tmp_path):
     assert dissected_verdicts(rows) == verdicts_of(decoded[:-1])
     assert {"letter-o", "alarm-ignored"} <= {c for _, c, _ in dissected_verdicts(rows)}
     assert assert_frames_match(rec, rows) == 2 * len(SLOPPY_HOST)
+    info = subprocess.run(["capinfos", str(rec)], capture_output=True, text=True, timeout=60).stdout
+    assert "xac1 sim --tcp 127.0.0.1:0 (time scale 0.0, wire timing off)" in info
 
 
 def test_kill_9_proxy_recording_opens_up_to_its_last_packet(tmp_path):

@@ -121,7 +121,9 @@ def run(args: argparse.Namespace) -> int:
 
         from ..chunk import Chunk
         try:
-            writer = open_recording(args.log, f"xac1 sim ({'pty' if args.pty else 'tcp'})", analyze=True)
+            port = f"--pty{f' --link {args.link}' if args.link else ''}" if args.pty else f"--tcp {args.tcp}"
+            settings = f"time scale {config.time_scale}, wire timing {'on' if config.wire_timing else 'off'}"
+            writer = open_recording(args.log, f"xac1 sim {port} ({settings})", analyze=True)
         except OSError as exc:
             return _fail(f"cannot write the log {args.log}: {exc}")
 
