@@ -215,19 +215,24 @@ def test_dissector_equals_decoder_frame_by_frame(tmp_path):
 
 @settings(max_examples=15, deadline=None)
 @given(cuts=st.lists(st.integers(min_value=1, max_value=15), min_size=1, max_size=40),
-       noise=st.lists(st.binary(min_size=1, max_size=6), max_size=3))
-def test_dissector_framing_equals_the_framer_whatever_the_chunking(tmp_path_factory, cuts, noise):
+       noise=st.lists(st.binary(min_size=1, max_size=6), max_size=3),
+       flagged=st.sets(st.integers(min_value=0, max_value=60), max_size=6))
+def test_dissector_framing_equals_the_framer_whatever_the_chunking(tmp_path_factory, cuts, noise, flagged):
     """The Lua framer (a port of xac1_proto/framer.py) cuts any chunking of the session's bytes, with
-    noise in between, into the frames and junk our decoder finds, in the same packets."""
-    host = b"".join(d for _, side, d in SESSION if side == HOST) + b"".join(noise)
-    device = b"".join(d for _, side, d in SESSION if side == DEVICE)
-    chunks, t = [], T0
-    for side, data in ((HOST, host), (DEVICE, device)):
-        at, k = 0, 0
-        while at < len(data):
-            n = cuts[k % len(cuts)]
-            chunks.append(Chunk(t, side, data[at:at + n]))
-            at, k, t = at + n, k + 1, t + 0.001
+    noise in between, into the frames and junk our decoder finds, in the same packets; chunks flagged
+    with a UART error (RTAC error events) keep their direction."""
+    streams = {HOST: b"".join(d for _, side, d in SESSION if side == HOST) + b"".join(noise),
+               DEVICE: b"".join(d for _, side, d in SESSION if side == DEVICE)}
+    at = {HOST: 0, DEVICE: 0}
+    chunks, t, k = [], T0, 0
+    while any(at[d] < len(streams[d]) for d in at):
+        side = (HOST, DEVICE)[(k // 2) % 2] if at[HOST] < len(streams[HOST]) else DEVICE
+        if at[side] >= len(streams[side]):
+            side = HOST
+        n = cuts[k % len(cuts)]
+        error = "UART framing error" if k in flagged else None
+        chunks.append(Chunk(t, side, streams[side][at[side]:at[side] + n], error))
+        at[side], k, t = at[side] + n, k + 1, t + 0.001
     path = tmp_path_factory.mktemp("chunking") / "c.pcapng"
     write_annotated(path, chunks)
     assert assert_frames_match(path) >= 29
