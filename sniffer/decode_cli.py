@@ -162,7 +162,13 @@ def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
     """``--annotate``: the pcapng recorder (``sniffer.io.pcapng_writer``), or None."""
     if args.annotate is None:
         return None
+    from pathlib import Path
+
+    from .io.base import FormatError
     from .io.pcapng_writer import PcapngRecorder
+
+    if any(Path(args.annotate).resolve() == Path(f).resolve() for f in args.files):
+        raise FormatError(f"--annotate {args.annotate}: that is an input file; give another name")
 
     return PcapngRecorder(args.annotate, source=f"xac1 decode {' '.join(args.files)} ({capture.format})")
 

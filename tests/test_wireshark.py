@@ -274,6 +274,17 @@ def test_annotate_every_gallery_capture(tmp_path, capture):
     assert assert_frames_match(out, rows) > 10
 
 
+def test_annotate_refuses_to_overwrite_its_input(tmp_path):
+    """``--annotate`` naming the capture being read: a clear message, the capture untouched."""
+    path = tmp_path / "s.pcapng"
+    write_annotated(path, session_chunks())
+    before = path.read_bytes()
+    done = subprocess.run([sys.executable, "-m", "xac1_proto", "decode", str(path), "--annotate", str(path)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and "that is an input file" in done.stderr
+    assert path.read_bytes() == before
+
+
 def test_recording_cut_mid_block_still_opens(tmp_path):
     """A recording cut anywhere (a process killed while writing) opens in tshark up to its last whole
     packet, and our reader says how many bytes were lost."""
