@@ -4,6 +4,7 @@ processes, the simulator on a real pty or TCP port), opened by tshark through a 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -15,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from wireshark_tshark import assert_frames_match, dissect, dissected_verdicts, tshark, verdicts_of
+from wireshark_tshark import PLUGIN, assert_frames_match, dissect, dissected_verdicts, tshark, verdicts_of
 
 from xac1_proto.sim import SimConfig, serve_pty, serve_tcp
 
@@ -68,6 +69,15 @@ def talk(sock: socket.socket, commands: tuple[bytes, ...] = SLOPPY_HOST) -> list
             buf += data
         answers.append(buf)
     return answers
+
+
+def open_files(pid: int) -> set[str]:
+    """Paths a process holds open (Linux /proc)."""
+    out = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        with contextlib.suppress(OSError):  # closed meanwhile
+            out.add(os.readlink(fd))
+    return out
 
 
 def free_port() -> int:
@@ -214,3 +224,53 @@ def test_extcap_driven_as_wireshark_drives_it(tmp_path, profile_env):
     headers = [line.split("\t")[1] for line in lines if line.split("\t")[1:2] != [""]]
     assert headers.count("0RV") == 2 and headers.count("0%C") == 4
     assert any(line.rstrip("\n").endswith("\tletter-o") for line in lines)
+
+
+def test_extcap_tap_interface_captures_a_y_cable(tmp_path):
+    """"XA-C1 tap": the two receive-only taps of a Y-cable captured into the FIFO, decoded by tshark."""
+    from sniffer_wire import YCable
+
+    from xac1_proto.client import Client
+
+    fifo = tmp_path / "tap.fifo"
+    os.mkfifo(fifo)
+    with serve_pty(SimConfig(time_scale=0, wire_timing=True)) as sim, YCable(sim.path) as cable:
+        reader = subprocess.Popen(["tshark", "-r", str(fifo), "-l", "-X", f"lua_script:{PLUGIN}",
+                                   "-d", "rtacser.data,xac1", "-T", "fields", "-e", "xac1.header",
+                                   "-e", "xac1.role"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        capture = xac1("extcap", "--capture", "--extcap-interface", "xac1tap", "--fifo", str(fifo),
+                       "--host-tap", cable.tap_paths["host"], "--device-tap", cable.tap_paths["device"])
+        try:
+            taps = {os.path.realpath(p) for p in cable.tap_paths.values()}
+            deadline = time.monotonic() + WAIT_S
+            while not taps <= open_files(capture.pid):  # the taps are open: the capture runs
+                assert time.monotonic() < deadline and capture.poll() is None, capture.stderr
+                time.sleep(0.05)
+            with Client(cable.host_path) as client:
+                client.read_version()
+                client.read_outputs()
+            time.sleep(0.3)
+            capture.send_signal(signal.SIGTERM)
+            _, err = capture.communicate(timeout=WAIT_S)
+            out, _ = reader.communicate(timeout=WAIT_S)
+        finally:
+            capture.kill()
+            reader.kill()
+    assert capture.returncode == 0 and err == "", err  # nothing on stderr: Wireshark would show it
+    frames = [tuple(line.split("\t")) for line in out.splitlines() if line.split("\t")[0]]
+    assert frames == [("0RV", "command"), ("0RV", "answer"), ("0RS", "command"), ("0RS", "answer")]
+
+
+def test_extcap_capture_failure_is_said_on_stderr(tmp_path):
+    """A tap that does not exist: the capture fails with the sniffer's message on stderr (which
+    Wireshark shows), naming the port; missing options are named too."""
+    out = tmp_path / "out.pcapng"
+    done = subprocess.run([sys.executable, "-m", "xac1_proto", "extcap", "--capture", "--extcap-interface",
+                           "xac1tap", "--fifo", str(out), "--host-tap", str(tmp_path / "no-such-tty"),
+                           "--device-tap", str(tmp_path / "no-such-tty-2")], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 1 and "no-such-tty" in done.stderr and "Traceback" not in done.stderr
+    done = subprocess.run([sys.executable, "-m", "xac1_proto", "extcap", "--capture", "--extcap-interface",
+                           "xac1proxy", "--fifo", str(out)], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and "needs --device" in done.stderr

@@ -8,13 +8,15 @@ the tap ports, or the device port and the host side's TCP port or pty link), and
 --fifo PATH`` with those options. The capture is ``xac1 sniff`` or ``xac1 proxy`` itself, with its
 recording forced to pcapng and written into the FIFO (``sniffer.io.pcapng_writer``: one packet per
 chunk, verdicts as packet comments that the dissector shows as expert info). Wireshark stops it with
-SIGTERM; the recording is closed then. The text view goes nowhere (Wireshark does not read it).
+SIGTERM; the recording is closed then. The text view goes nowhere (Wireshark does not read it), and
+the shell's messages reach stderr only when the capture fails (Wireshark shows stderr as an error).
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import io
 import os
 import sys
 from typing import IO, Final
@@ -122,11 +124,15 @@ def capture(args: argparse.Namespace) -> int:
     module.add_arguments(p)
     shell_args = p.parse_args(argv)
     shell_args.record_format = "pcapng"  # the FIFO's name says nothing of the format
-    with open(os.devnull, "w") as null, contextlib.redirect_stdout(null):
+    said = io.StringIO()  # Wireshark shows an extcap's stderr as an error: only say it on failure
+    with open(os.devnull, "w") as null, contextlib.redirect_stdout(null), contextlib.redirect_stderr(said):
         try:
-            return int(module.run(shell_args) or 0)
+            code = int(module.run(shell_args) or 0)
         except BrokenPipeError:  # Wireshark stopped reading the FIFO: the capture is over
-            return 0
+            code = 0
+    if code != 0:
+        sys.stderr.write(said.getvalue())
+    return code
 
 
 def run(args: argparse.Namespace) -> int:
