@@ -190,6 +190,7 @@ def test_dissector_equals_decoder_frame_by_frame(tmp_path):
     per_chunk, _ = replay(path)
     want = verdicts_of([r.to_dict() for r in records])
     assert dissected_verdicts(rows) == want
+    assert dissect(path, two_pass=True) == rows  # a first pass without a tree finds the same
     codes = {c for _, c, _ in want}
     assert {"letter-o", "alarm-ignored", "latch-broken", "echo-mismatch", "bad-terminator", "garbage",
             "lowercase-hex", "unknown-command", "missing-2", "field-range", "reserved-alarm",

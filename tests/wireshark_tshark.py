@@ -45,8 +45,10 @@ def lua_errors(done: subprocess.CompletedProcess[str]) -> list[str]:
     return [line for line in done.stderr.splitlines() if "Lua" in line or "lua" in line]
 
 
-def dissect(path: Path | str, **kw) -> list[dict[str, list[str]]]:
-    args = ["-T", "fields", "-E", "separator=\t", "-E", "occurrence=a", "-E", f"aggregator={SEP}"]
+def dissect(path: Path | str, two_pass: bool = False, **kw) -> list[dict[str, list[str]]]:
+    """``two_pass``: tshark -2, a first pass with no tree, as Wireshark's GUI reads a file."""
+    args = ["-2"] if two_pass else []
+    args += ["-T", "fields", "-E", "separator=\t", "-E", "occurrence=a", "-E", f"aggregator={SEP}"]
     for f in FIELDS:
         args += ["-e", f]
     done = tshark(path, *args, **kw)

@@ -63,7 +63,6 @@ verdict_list[#verdict_list + 1] = verdict_other
 xac1.experts = check_list
 verdicts.experts = verdict_list
 
-local f_event = Field.new("rtacser.eventtype")
 local f_comment = Field.new("frame.comment")
 
 -- ---- framing: a port of xac1_proto/framer.py (bytes -> frames and junk, whatever the chunking) -----
@@ -298,15 +297,6 @@ xac1.init = reset
 
 local DATA_EVENTS = { [1] = "host", [3] = "host", [2] = "device", [4] = "device" }
 
-local function direction(pinfo)
-  local ev = f_event()
-  if ev ~= nil then
-    local d = DATA_EVENTS[ev.value]
-    if d then return d end
-  end
-  return last_dir or "host"
-end
-
 local function show_text(raw)
   return (raw:gsub("\r", "\\r"):gsub("\n", "\\n"):gsub("[^\32-\126\\]", function(c)
     return string.format("\\x%02X", c:byte())
@@ -377,9 +367,7 @@ end
 function xac1.dissector(tvb, pinfo, tree)
   local events = results[pinfo.number]
   if events == nil and not pinfo.visited then
-    local d = direction(pinfo)
-    last_dir = d
-    dirs[pinfo.number] = d
+    local d = dirs[pinfo.number] or last_dir or "host"
     events = {}
     local t = pinfo.abs_ts
     local dev = framers.device
@@ -412,10 +400,6 @@ end
 -- ---- our verdicts: packet comments written by xac1 (sniffer/io/pcapng_writer.py) ---------------
 
 function verdicts.dissector(tvb, pinfo, tree)
-  if not pinfo.visited then
-    local ev = f_event()
-    if ev ~= nil and DATA_EVENTS[ev.value] then last_dir = DATA_EVENTS[ev.value] end
-  end
   local comments = { f_comment() }
   local sub = nil
   for _, c in ipairs(comments) do
@@ -445,8 +429,24 @@ register_postdissector(verdicts)
 
 -- ---- where XA-C1 bytes come from -------------------------------------------------------------------
 
+-- The line's direction is the RTAC serial event type (TX host, RX device; error events: the last data
+-- direction). A payload dissector cannot see it when Wireshark builds no tree (a first pass), so a thin
+-- dissector reads it from the RTAC header, then hands the packet to the RTAC serial dissector.
+local line = Proto("xac1_line", "XA-C1 line direction (RTAC serial event type)")
+local rtacser = Dissector.get("rtacser")
+local RTAC_EVENT_OFFSET, RTAC_HEADER_LEN = 8, 12
+
+function line.dissector(tvb, pinfo, tree)
+  if not pinfo.visited and tvb:len() >= RTAC_HEADER_LEN then
+    local d = DATA_EVENTS[tvb(RTAC_EVENT_OFFSET, 1):uint()]
+    if d then last_dir = d end
+    dirs[pinfo.number] = d or last_dir or "host"
+  end
+  return rtacser:call(tvb, pinfo, tree)
+end
+
 DissectorTable.get("rtacser.data"):add_for_decode_as(xac1)
--- USER0 (147) files carry the same RTAC serial header: hand them to the RTAC serial dissector.
-pcall(function()
-  DissectorTable.get("wtap_encap"):add(wtap_encaps.USER0, Dissector.get("rtacser"))
-end)
+-- RTAC serial files, and USER0 (147) files that carry the same RTAC serial header.
+local encap = DissectorTable.get("wtap_encap")
+encap:add(wtap_encaps.RTAC_SERIAL, line)
+encap:add(wtap_encaps.USER0, line)
