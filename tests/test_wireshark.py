@@ -394,6 +394,28 @@ def test_install_profile_opens_recordings(tmp_path, wsenv):
     assert not (cfg / "plugins" / "xac1.lua").exists() and not launcher.exists()
 
 
+def test_install_without_wireshark_config_dir_uses_home_and_xdg(tmp_path):
+    """Without WIRESHARK_CONFIG_DIR: the Decode As entry in $XDG_CONFIG_HOME/wireshark and the plugin in
+    ~/.local/lib/wireshark/plugins, which tshark loads by itself; a named profile gets the entry."""
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "WIRESHARK_CONFIG_DIR"}
+    env.update(HOME=str(home), XDG_CONFIG_HOME=str(tmp_path / "xdg"))
+    done = xac1("wireshark", "install", env=env)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "xdg/wireshark/decode_as_entries").read_text().endswith(inst.DECODE_AS_ENTRY + "\n")
+    assert (home / ".local/lib/wireshark/plugins/xac1.lua").exists()
+    path = tmp_path / "s.pcapng"
+    write_annotated(path, session_chunks())
+    plain = tshark(path, "-T", "fields", "-e", "xac1.header", plugin=False, decode_as=False, env=env)
+    assert plain.stdout.split()[:2] == ["0RV", "0RV"], plain.stderr
+    assert xac1("wireshark", "install", "--profile", "field", env=env).returncode == 0
+    assert inst.DECODE_AS_ENTRY in (tmp_path / "xdg/wireshark/profiles/field/decode_as_entries").read_text()
+    in_profile = tshark(path, "-C", "field", "-T", "fields", "-e", "xac1.header", plugin=False,
+                        decode_as=False, env=env)
+    assert in_profile.stdout.split()[:2] == ["0RV", "0RV"], in_profile.stderr
+
+
 def test_install_refuses_a_malformed_decode_as_file(wsenv):
     """A decode_as_entries that does not parse: a message naming file and line; nothing changed."""
     cfg = Path(wsenv["WIRESHARK_CONFIG_DIR"])
