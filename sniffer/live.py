@@ -20,9 +20,10 @@ from collections.abc import Callable
 from typing import IO
 
 from xac1_proto.chunk import Chunk, Direction
+from xac1_proto.recording import RecordingWriter
 
 from .analyzer import Analyzer
-from .io.pcapng_writer import Recorder
+from .io.pcapng_writer import JsonlRecorder, Recorder
 from .order import CausalOrder
 from .records import Record
 from .taps import PortGone, ReadOnlyPort
@@ -46,10 +47,12 @@ class Clock:
 class Session:
     """Recording, analyzer and view for one run; see the module docstring."""
 
-    def __init__(self, analyzer: Analyzer, view: View, recorder: Recorder | None = None,
+    def __init__(self, analyzer: Analyzer, view: View, recorder: Recorder | RecordingWriter | None = None,
                  on_record: Callable[[Record], None] | None = None) -> None:
         self.analyzer = analyzer
         self.view = view
+        if isinstance(recorder, RecordingWriter):  # a JSON lines writer opened by hand
+            recorder = JsonlRecorder.around(recorder)
         self.recorder = recorder
         self.on_record = on_record
         self.closed = False

@@ -504,3 +504,38 @@ def test_folders_follow_wireshark():
     assert (f.config, f.lua_plugins) == (Path("/x/wireshark"), Path("/h/.local/lib/wireshark/plugins"))
     assert inst.folders({"HOME": "/h"}).config == Path("/h/.config/wireshark")
 
+
+
+class _Quiet:
+    def write(self, record) -> None:
+        pass
+
+    def summary(self, summary) -> None:
+        pass
+
+
+def test_live_session_writes_verdicts_as_they_come(tmp_path):
+    """The live Session writes each chunk with the verdicts it completed, and a no-answer found when
+    time passes on a packet of its own; a hand-opened JSON lines writer still works in its place."""
+    from sniffer.analyzer import Analyzer
+    from sniffer.live import Session
+    from xac1_proto.recording import RecordingWriter, read_recording
+
+    path = tmp_path / "live.pcapng"
+    session = Session(Analyzer(), _Quiet(), open_recording(path, "live"))  # type: ignore[arg-type]
+    for c in session_chunks()[:8]:  # up to the alarm reset
+        session.chunk(c)
+    session.chunk(Chunk(T0 + 2.0, HOST, b"0RV\r\n"))
+    session.tick(T0 + 4.0)  # its deadline passed: no-answer on an empty packet of its own
+    session.close(T0 + 4.0)
+    rows = dissect(path)
+    assert rows[-1]["frame.len"] == ["12"] and rows[-1]["xac1.violation"] == ["no-answer"]
+    assert [v for row in rows for v in row["xac1.violation"]] == ["letter-o", "alarm-ignored", "latch-broken",
+                                                                   "no-answer"]
+    jsonl = tmp_path / "live.jsonl"
+    session = Session(Analyzer(), _Quiet(), RecordingWriter(jsonl, "hand"))  # type: ignore[arg-type]
+    for c in session_chunks()[:2]:
+        session.chunk(c)
+    session.close(T0 + 1)
+    with open(jsonl, encoding="ascii") as f:
+        assert [c.data for c in read_recording(f)] == [b"0RV\r\n", b"0RV100\r\n"]

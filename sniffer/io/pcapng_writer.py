@@ -198,9 +198,15 @@ class JsonlRecorder:
     """Our JSON lines recording (``xac1_proto.recording``) behind the ``Recorder`` shape: it keeps the
     raw chunks only (``xac1 decode`` recomputes the verdicts)."""
 
-    def __init__(self, path: str | os.PathLike[str], source: str = "") -> None:
-        self._writer = RecordingWriter(path, source=source)
+    def __init__(self, path: str | os.PathLike[str], source: str = "",
+                 writer: RecordingWriter | None = None) -> None:
+        self._writer = writer if writer is not None else RecordingWriter(path, source=source)
         self.path = self._writer.path
+
+    @classmethod
+    def around(cls, writer: RecordingWriter) -> JsonlRecorder:
+        """An open ``RecordingWriter`` behind the ``Recorder`` shape."""
+        return cls(writer.path, writer=writer)
 
     def write(self, chunk: Chunk, records: Sequence[Record] = ()) -> None:
         self._writer.write(chunk)
