@@ -46,7 +46,9 @@ def run(args: argparse.Namespace) -> int:
         print("error: --link goes with --pty", file=sys.stderr)
         return 2
     try:
-        session = make_session(args, f"xac1 proxy --device {args.device}")
+        host_side = "--pty" + (f" --link {args.link}" if args.link else "") if args.pty else \
+            f"--tcp {args.tcp[0]}:{args.tcp[1]}"
+        session = make_session(args, f"xac1 proxy --device {args.device} {host_side}")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

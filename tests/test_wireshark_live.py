@@ -127,7 +127,7 @@ def test_proxy_recording_of_a_sloppy_host_opens_in_wireshark(tmp_path, profile_e
                   "-e", "xac1.side", plugin=False, decode_as=False, env=profile_env)
     assert done.stdout.split() == ["0RS", "host"], done.stderr
     comment = subprocess.run(["capinfos", str(rec)], capture_output=True, text=True, timeout=60).stdout
-    assert f"xac1 proxy --device {sim.path}" in comment and "baud 9600" in comment
+    assert f"xac1 proxy --device {sim.path} --tcp 127.0.0.1:0 (baud 9600" in comment
 
 
 def test_sim_log_pcapng_carries_the_verdicts(tmp_path):
