@@ -114,6 +114,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="colour in the text view (default: when the output is a terminal)")
     p.add_argument("--report", metavar="FILE", default=None,
                    help="also write an HTML session report to FILE (needs the 'report' extra)")
+    p.add_argument("--annotate", metavar="OUT.pcapng", default=None,
+                   help="also write the capture as pcapng for Wireshark, every verdict as a packet comment")
 
 
 
@@ -232,6 +234,21 @@ def _choose_format(sources: list[Source], args: argparse.Namespace, report: Repo
     return fmt, False
 
 
+def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
+    """``--annotate``: the pcapng recorder (``sniffer.io.pcapng_writer``), or None."""
+    if args.annotate is None:
+        return None
+    from pathlib import Path
+
+    from .io.base import FormatError
+    from .io.pcapng_writer import PcapngRecorder
+
+    if any(Path(args.annotate).resolve() == Path(f).resolve() for f in args.files):
+        raise FormatError(f"--annotate {args.annotate}: that is an input file; give another name")
+
+    return PcapngRecorder(args.annotate, source=f"xac1 decode {' '.join(args.files)} ({capture.format})")
+
+
 def _partner(path: str) -> str | None:
     """The other direction's file of a one-file-per-direction capture: ``host`` <-> ``device`` in the
     name (``saleae-host.csv`` -> ``saleae-device.csv``), when that file exists."""
@@ -262,6 +279,7 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False)
         options["storm_limit"] = args.storm_limit
     analyzer = Analyzer(**options)
     tally = Tally() if one_sided else None
+    annotate = _annotated(args, capture)
     html_report = None
     if args.report:
         from .report import ReportError, SessionReport
@@ -293,14 +311,21 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False)
         with _progress(capture) as progress:
             for chunk in capture:
                 report.give_up_after = None  # data came: the format reads
-                emit(analyzer.feed(chunk))
+                records = analyzer.feed(chunk)
+                if annotate is not None:
+                    annotate.write(chunk, records)
+                emit(records)
                 progress.update()
     except WrongFormat:
         _print_problems(report, WRONG_FORMAT_SHOWN)
         looks = f" ({report.looks_like})" if report.looks_like else ""
         return _error(f"{WRONG_FORMAT_LIMIT} problems and no line data at the start: this is not a "
                       f"{capture.format} capture{looks}; leave --input-format out to detect the format")
-    emit(analyzer.close())
+    records = analyzer.close()
+    if annotate is not None:
+        annotate.verdicts(records)
+        annotate.close()
+    emit(records)
     summary = tally.summary() if tally is not None else analyzer.summary()
     if report.total_problems:
         summary["problems"] = report.total_problems

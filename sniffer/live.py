@@ -1,8 +1,9 @@
 """The live shell shared by ``xac1 sniff`` and ``xac1 proxy``: clock, analyzer, view and recording.
 
 ``Clock`` reads the monotonic clock and maps it to wall time once, so timestamps never jump when the
-system clock is set. ``Session`` takes each chunk as it is seen: writes it to the recording first (so a
-crash loses nothing), feeds the analyzer and prints the records; ``close()`` flushes, prints the
+system clock is set. ``Session`` takes each chunk as it is seen: feeds the analyzer, writes the chunk to
+the recording with the verdicts it completed (a pcapng recording keeps them as comments; written even
+when the analysis fails, so a crash loses nothing) and prints the records; ``close()`` flushes, prints the
 summary and closes the recording. ``sniff`` is the tap loop: ``select`` over the two receive-only taps,
 chunks put back in cause-and-effect order (``order.CausalOrder``: two taps deliver with different
 delays) and judged at the time their poll began (a slow sniffer sees late, never out of order), a
@@ -23,6 +24,7 @@ from xac1_proto.chunk import Chunk, Direction
 from xac1_proto.recording import RecordingWriter
 
 from .analyzer import Analyzer
+from .io.pcapng_writer import JsonlRecorder, Recorder
 from .order import CausalOrder
 from .records import Record
 from .taps import PortGone, ReadOnlyPort
@@ -46,10 +48,12 @@ class Clock:
 class Session:
     """Recording, analyzer and view for one run; see the module docstring."""
 
-    def __init__(self, analyzer: Analyzer, view: View, recorder: RecordingWriter | None = None,
+    def __init__(self, analyzer: Analyzer, view: View, recorder: Recorder | RecordingWriter | None = None,
                  on_record: Callable[[Record], None] | None = None) -> None:
         self.analyzer = analyzer
         self.view = view
+        if isinstance(recorder, RecordingWriter):  # a JSON lines writer opened by hand
+            recorder = JsonlRecorder.around(recorder)
         self.recorder = recorder
         self.on_record = on_record
         self.closed = False
@@ -61,12 +65,19 @@ class Session:
                 self.on_record(r)
 
     def chunk(self, chunk: Chunk) -> None:
-        if self.recorder is not None:
-            self.recorder.write(chunk)
-        self._out(self.analyzer.feed(chunk))
+        records: list[Record] = []
+        try:
+            records = self.analyzer.feed(chunk)
+        finally:  # recorded even if the analysis fails; with the verdicts it completed
+            if self.recorder is not None:
+                self.recorder.write(chunk, records)
+        self._out(records)
 
     def tick(self, now: float) -> None:
-        self._out(self.analyzer.tick(now))
+        records = self.analyzer.tick(now)
+        if records and self.recorder is not None:
+            self.recorder.verdicts(records, now)
+        self._out(records)
 
     def close(self, now: float | None, summary: bool = True) -> None:
         """Flush the analyzer, print the summary (unless ``summary`` is False), close the recording."""
@@ -74,7 +85,10 @@ class Session:
             return
         self.closed = True
         try:
-            self._out(self.analyzer.close(now))
+            records = self.analyzer.close(now)
+            if records and self.recorder is not None:
+                self.recorder.verdicts(records, now)
+            self._out(records)
             if summary:
                 self.view.summary(self.analyzer.summary())
         finally:

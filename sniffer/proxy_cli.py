@@ -51,7 +51,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     with OrderlyEnd("xac1 proxy", "stopping: the summary follows") as end:
         try:
-            session = make_session(args, f"xac1 proxy --device {args.device}")
+            host_side = "--pty" + (f" --link {args.link}" if args.link else "") if args.pty else \
+                f"--tcp {args.tcp[0]}:{args.tcp[1]}"
+            session = make_session(args, f"xac1 proxy --device {args.device} {host_side}")
         except ValueError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2

@@ -14,7 +14,8 @@ def add_common_output(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--format", choices=("text", "jsonl"), default="text",
                         help="text: a colour line per frame (default); jsonl: one JSON object a line")
     parser.add_argument("--record", metavar="FILE",
-                        help="also write every chunk to FILE (JSON lines recording, readable by xac1 decode)")
+                        help="also write every chunk to FILE: FILE.pcapng for Wireshark (verdicts as packet "
+                             "comments), else our JSON lines recording; both read by xac1 decode")
     parser.add_argument("--timeout", type=float, default=spec.NO_ANSWER_TIMEOUT_S, metavar="S",
                         help="no-answer timeout in seconds after a command's last byte; moves get their "
                              f"estimated time doubled on top (default {spec.NO_ANSWER_TIMEOUT_S})")
@@ -40,12 +41,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_common_output(parser)
 
 
-def open_recording(path: str, source: str):  # -> RecordingWriter (import kept lazy)
-    """The writer for ``--record FILE``; ValueError with a message for people when it cannot be written."""
-    from xac1_proto.recording import RecordingWriter
+def open_recording(path: str, source: str, fmt: str | None = None):  # -> Recorder (import kept lazy)
+    """The recorder for ``--record FILE`` (pcapng by the suffix or ``fmt``, else our JSON lines
+    recording); ValueError with a message for people when it cannot be written."""
+    from .io import pcapng_writer
 
     try:
-        return RecordingWriter(path, source=source)
+        return pcapng_writer.open_recording(path, source, fmt=fmt)
     except OSError as exc:
         raise ValueError(f"cannot write the recording {path}: {exc.strerror or exc}") from None
 
@@ -65,7 +67,12 @@ def make_session(args: argparse.Namespace, source: str):  # -> live.Session (imp
     if args.report:
         from .report import SessionReport
         report = SessionReport.open(args.report, [(source, "live")], args.timeout)  # ReportError: ValueError
-    recorder = open_recording(args.record, source) if args.record else None
+    recorder = None
+    if args.record:
+        settings = (f"baud {getattr(args, 'baud', spec.BAUD)}, timeout {args.timeout} s, "
+                    f"storm limit {args.storm_limit}")
+        recorder = open_recording(args.record, f"{source} ({settings})",
+                                  fmt=getattr(args, "record_format", None))  # extcap: a FIFO
     analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit)
     if report is not None:
         from .report.live import ReportingSession

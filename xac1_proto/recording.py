@@ -14,7 +14,7 @@ import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Protocol
 
 from .chunk import Chunk
 
@@ -87,3 +87,31 @@ def read_recording(lines: Iterator[str], name: str = "<recording>",
             if problems is None:
                 raise ValueError(f"{name}:{number}: {exc}") from None
             problems.append(f"{name}:{number}: malformed recording line ({exc})")
+
+
+class ChunkWriter(Protocol):
+    """What a shell records to: one chunk at a time, then close."""
+
+    def write(self, chunk: Chunk) -> None: ...
+
+    def close(self) -> None: ...
+
+
+RECORDERS_GROUP = "xac1_proto.recorders"  # entry points: file suffix (no dot) -> opener
+
+
+def open_recording(path: str | os.PathLike[str], source: str = "", *, analyze: bool = False) -> ChunkWriter:
+    """A recording for ``path`` chosen by its suffix: a format registered under the entry-point group
+    ``xac1_proto.recorders`` (the sniffer registers ``pcapng``: Wireshark files with our verdicts as
+    packet comments; ``analyze``: the caller has no analyzer of its own, so the recorder runs one), else
+    our JSON lines recording. The core names no recorder above it; installed packages plug theirs in,
+    as pyserial's URL handlers do. Raises OSError when the file cannot be written."""
+    from importlib.metadata import entry_points
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    for entry in entry_points(group=RECORDERS_GROUP):
+        if entry.name == suffix:
+            opener = entry.load()
+            writer: ChunkWriter = opener(path, source, analyze=analyze)
+            return writer
+    return RecordingWriter(path, source=source)

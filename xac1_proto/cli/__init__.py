@@ -46,6 +46,11 @@ COMMANDS: Final[dict[str, Subcommand]] = {
     "decode": Subcommand("sniffer.decode_cli",
                          "decode a capture file (socat, spy://, interceptty, jpnevulator, Saleae, sigrok, "
                          "pcap, raw, jsonl)"),
+    "wireshark": Subcommand("sniffer.wireshark.wireshark_cmd",
+                            "install the XA-C1 Wireshark dissector and extcap (install [--uninstall]), or "
+                            "show its folders (path)"),
+    "extcap": Subcommand("sniffer.wireshark.extcap_cmd",
+                         "Wireshark extcap interface (XA-C1 tap, XA-C1 proxy); Wireshark runs it"),
 }
 
 

@@ -24,7 +24,7 @@ import time
 from typing import TYPE_CHECKING, Any, Final
 
 if TYPE_CHECKING:
-    from ..recording import RecordingWriter
+    from ..recording import ChunkWriter
     from ..signals import OrderlyEnd
     from .model import DeviceModel
     from .outbox import Output
@@ -71,7 +71,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for flag, (_, kwargs) in FLAGS.items():
         parser.add_argument(flag, dest=_dest(flag), **kwargs)
     parser.add_argument("--state", metavar="FILE", help="keep the position table in FILE across runs")
-    parser.add_argument("--log", metavar="FILE", help="record every byte both ways (recording format)")
+    parser.add_argument("--log", metavar="FILE", help="record every byte both ways: FILE.pcapng for "
+                        "Wireshark (with verdicts), else our JSON lines recording")
     parser.add_argument("--estop", action="store_true", help="start with the emergency stop input on")
     parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                         help="any simulator option (the xac1sim:// query options), e.g. accept_lowercase=1")
@@ -114,11 +115,12 @@ def _fail(message: str) -> int:
     return EXIT_USAGE
 
 
-def open_log(path: str, transport: str) -> RecordingWriter:
-    """The writer for ``--log FILE`` (OSError when it cannot be written)."""
-    from ..recording import RecordingWriter
+def open_log(path: str, source: str) -> ChunkWriter:
+    """The writer for ``--log FILE``, by suffix (``.pcapng`` for Wireshark, with verdicts, where the
+    sniffer is installed; else our JSON lines recording). OSError when it cannot be written."""
+    from ..recording import open_recording
 
-    return RecordingWriter(path, source=f"xac1 sim ({transport})")
+    return open_recording(path, source, analyze=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -171,7 +173,9 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
     writer = None
     if args.log:
         try:
-            writer = open_log(args.log, "pty" if args.pty else "tcp")
+            port = f"--pty{f' --link {args.link}' if args.link else ''}" if args.pty else f"--tcp {args.tcp}"
+            settings = f"time scale {config.time_scale}, wire timing {'on' if config.wire_timing else 'off'}"
+            writer = open_log(args.log, f"xac1 sim {port} ({settings})")
         except OSError as exc:
             return _fail(f"cannot write the log {args.log}: {exc.strerror or exc}")
 
