@@ -37,7 +37,8 @@ from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 
 GALLERY = Path(__file__).resolve().parent.parent / "captures"
-CAPTURES = sorted(p for p in GALLERY.iterdir() if p.suffix not in (".md", ".py") and "device" not in p.name)
+CAPTURES = sorted(p for p in GALLERY.iterdir()
+                  if p.is_file() and p.suffix not in (".md", ".py") and "device" not in p.name)
 T0 = 1_700_000_000.0
 
 # A sloppy host and a faulty device (docs/protocol.md "Violation codes"): letter O, an alarm ignored,
