@@ -11,6 +11,7 @@ import pytest
 
 from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, reset_ok
+from conformance.results import ManualStep
 from xac1_proto import spec
 from xac1_proto.frames import AlarmReset, ReadVersion
 
@@ -68,8 +69,9 @@ def test_estop_survives_reset(xac1_dut):
     the vendor text states": the reset clears every alarm except emergency stop)."""
     sim = getattr(xac1_dut.client.port, "model", None)
     if not hasattr(sim, "set_estop"):
-        pytest.skip("emergency stop comes from the device's stop input, not the line: check by hand (press "
-                    "the stop, send 0%C, expect 0%%0E)")
+        raise ManualStep("press the emergency stop, then send 0%C and 0RV (e.g. with xac1 console)",
+                         "0%C answers 0%%0E and 0RV answers 0%%0E too: the stop stays latched until the "
+                         "stop input is released")
     sim.set_estop(True)
     try:
         first = xac1_dut.send(ReadVersion())
