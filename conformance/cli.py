@@ -111,7 +111,8 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         settings = Settings.make(args.port, args.allow_motion, args.fresh, args.safe_range, args.seed,
-                                 args.examples, args.timeout, args.scratch_points, args.restore_mode0, cli=True)
+                                 args.examples, args.timeout, args.scratch_points, args.restore_mode0,
+                                 cli=True)
     except SettingsError as exc:
         print(f"xac1 conformance: {str(exc).replace('--xac1-', '--')}", file=sys.stderr)
         return 2

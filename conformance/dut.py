@@ -124,10 +124,6 @@ class DeviceUnderTest:
             timeout = self.settings.timeout
         try:
             ex = self.client.transact(raw, timeout=timeout)
-        except (SerialException, OSError) as exc:
-            self.lost = (f"the port {self.settings.port} failed while sending {show_bytes(raw)}: {exc}. "
-                         f"The adapter or device went away (unplugged, powered off, connection closed)")
-            raise PortLost(self.lost) from None
         except ResponseTimeout as exc:
             p = Probe.silence(self.test, raw, exc.partial)
             self.latched = None
@@ -135,6 +131,10 @@ class DeviceUnderTest:
         except CommunicationHalted as exc:
             raise DeviceAbort(f"the client stopped sending after repeated communication errors "
                               f"(the vendor's host duty): {exc}") from exc
+        except (SerialException, OSError) as exc:  # after ResponseTimeout, itself a TimeoutError
+            self.lost = (f"the port {self.settings.port} failed while sending {show_bytes(raw)}: {exc}. "
+                         f"The adapter or device went away (unplugged, powered off, connection closed)")
+            raise PortLost(self.lost) from None
         else:
             p = Probe(self.test, ex)
             self._learn(command, p)

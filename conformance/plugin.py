@@ -22,6 +22,7 @@ interrupted, 3 could not go on, 4 incomplete (checks of stated rules not run; 0 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as _dt
 import os
 from pathlib import Path
@@ -390,10 +391,8 @@ def _finish(run: Xac1Run) -> None:
                 run.progress.current = "restoring the device"
             run.restore_report = restore(run.dut, run.snapshot)
     finally:
-        try:
+        with contextlib.suppress(Exception):  # a port that went away cannot close cleanly; nothing to lose
             run.dut.close()
-        except Exception:  # noqa: BLE001 - a port that went away cannot be closed cleanly; nothing to lose
-            pass
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:

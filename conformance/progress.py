@@ -50,7 +50,8 @@ class Progress:
         if topic != self.topic:
             self.topic = topic
             if self._live is None:
-                self.say(f"xac1 conformance: [{self.elapsed()}] {topic} (check {self.done + 1} of {self.total})")
+                self.say(f"xac1 conformance: [{self.elapsed()}] {topic} "
+                         f"(check {self.done + 1} of {self.total})")
 
     def finished_one(self) -> None:
         self.done += 1

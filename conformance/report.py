@@ -127,14 +127,16 @@ class Report:
     @property
     def to_run_them(self) -> list[str]:
         """The options named by the skip reasons (what would run the skipped checks)."""
-        out: list[str] = []
+        out: dict[str, str] = {}  # option name -> the widest value asked for
         for r in self.all_skipped:
             for opt in _OPTION.findall(r.message):
-                if opt not in out:
-                    out.append(opt)
+                name = opt.split(" ")[0]
+                if len(opt) > len(out.get(name, "")):
+                    out[name] = opt
+        hints = list(out.values())
         if self.deselected:
-            out.append("no -k")
-        return out
+            hints.append("no -k")
+        return hints
 
     @property
     def accepted(self) -> bool:
@@ -249,11 +251,12 @@ def build(run: Any) -> Report:
     safety, problems, warnings, unverified = _safety(run)
     judged = {r.nodeid for r in run.results}
     cut = "interrupted: the run stopped during this check"
-    not_run_checks = [(name + (" (information)" if info else ""), cut if nodeid in run.interrupted else "not run")
+    not_run_checks = [(name + (" (information)" if info else ""),
+                       cut if nodeid in run.interrupted else "not run")
                       for nodeid, name, info in run.collected if nodeid not in judged]
-    unit = [(k, v) for k, v in (("unit id", run.identity.get("unit_id")), ("operator", run.identity.get("operator")),
-                                ("station", run.identity.get("station")), ("note", run.identity.get("note")))
-            if v]
+    who = run.identity
+    unit = [(label, who[key]) for label, key in (("unit id", "unit_id"), ("operator", "operator"),
+                                                 ("station", "station"), ("note", "note")) if who.get(key)]
     return Report(
         port=s.port, version=(dut.version if dut is not None and dut.version else "unknown"),
         date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=options, checks=checks,
@@ -265,7 +268,8 @@ def build(run: Any) -> Report:
         interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
         command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seed=s.seed, kit_version=__version__, junit=list(run.results),
-        not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected if nodeid not in judged and not info])
+        not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected
+                        if nodeid not in judged and not info])
 
 
 def _topic(nodeid: str) -> str:

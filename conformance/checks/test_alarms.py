@@ -13,6 +13,7 @@ from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, reset_ok
 from conformance.results import ManualStep
 from xac1_proto import spec
+from xac1_proto.codec import show_bytes
 from xac1_proto.frames import AlarmReset, ReadVersion
 
 MALFORMED = b"0XY" + spec.TERMINATOR
@@ -22,7 +23,8 @@ LATCHED_KINDS = [h for h in COMMAND_HEADERS if h != spec.RESET_HEADER]
 def _latch(dut):
     p = dut.probe(MALFORMED)
     expect(not p.timed_out, "no answer (silence) to a malformed command", p)
-    expect(p.alarm is not None, f"a malformed command got {describe_answer(p)}, expected an alarm answer", p)
+    expect(p.alarm is not None, f"a malformed command (0XY): expected an alarm answer 0%%Ec, received "
+                                f"{describe_answer(p)}", p)
     return p
 
 
@@ -37,11 +39,13 @@ def test_alarm_latched(xac1_dut, xac1_kit, header):
     command = xac1_kit.command(header)
     first = _latch(xac1_dut)
     p = xac1_dut.send(command)
-    expect(p.raw == first.raw, f"with alarm {first.alarm.code:02X} latched, {header} got "
-                               f"{describe_answer(p)} instead of the alarm answer", first, p)
+    expect(p.raw == first.raw, f"with alarm {first.alarm.code:02X} latched, {header}: expected the alarm "
+                               f"answer {show_bytes(first.raw)} again, received {describe_answer(p)}",
+           first, p)
     again = xac1_dut.send(ReadVersion())
     expect(again.raw == first.raw,
-           f"the alarm was not latched: a second command got {describe_answer(again)}", first, p, again)
+           f"the alarm was not latched: a second command (0RV): expected the alarm answer "
+           f"{show_bytes(first.raw)}, received {describe_answer(again)}", first, p, again)
 
 
 def test_reset_clears_alarm(xac1_dut):
@@ -49,7 +53,7 @@ def test_reset_clears_alarm(xac1_dut):
     "Behaviour the vendor text states": alarm reset)."""
     first = _latch(xac1_dut)
     r = xac1_dut.send(AlarmReset())
-    expect(reset_ok(r), f"0%C answered {describe_answer(r)}, expected 0%C00",
+    expect(reset_ok(r), f"0%C: expected the reset answer 0%C00, received {describe_answer(r)}",
            first, r)
     n = xac1_dut.send(ReadVersion())
     expect(n.answered, f"after 0%C00 the next command got {describe_answer(n)}, not its normal answer",
