@@ -65,7 +65,7 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
            "-W", "ignore::pytest.PytestAssertRewriteWarning"]  # the CLI imported the package first
     if not _plugin_registered():
         out += ["-p", "conformance.plugin"]
-    out += ["-v", "--tb=short"] if args.verbose else ["-p", "no:terminal"]
+    out += ["-v", "--tb=short"] if args.verbose else ["-p", "no:terminal", "--capture=sys"]
     for flag, value in (("--xac1-port", args.port), ("--xac1-safe-range", args.safe_range),
                         ("--xac1-report", args.report), ("--xac1-junit", args.junit),
                         ("--xac1-unit-id", args.unit_id), ("--xac1-operator", args.operator),

@@ -16,6 +16,7 @@ else ``StoppedAnswering``) and every later probe fails at once without being sen
 from __future__ import annotations
 
 import statistics
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -190,6 +191,24 @@ class DeviceUnderTest:
             target = point.pos
         if not s.in_range(target):
             raise MotionRefused(f"target 0x{target:06X} is outside the safe range {s.describe_range()}")
+
+    def drain(self, quiet: float) -> bytes:
+        """Read and drop what comes until the line has been quiet for ``quiet`` seconds (at most ten
+        times that): the late answer of a probe an interruption cut short must not pass for the answer
+        to the next command."""
+        port = self.client.port
+        out = b""
+        start = last = time.monotonic()
+        try:
+            while time.monotonic() - last < quiet and time.monotonic() - start < 10 * quiet:
+                data = port.read(max(1, port.in_waiting))
+                if data:
+                    out += data
+                    last = time.monotonic()
+        except (SerialException, OSError) as exc:
+            self.lost = f"the port {self.settings.port} failed: {exc}"
+            raise PortLost(self.lost) from None
+        return out
 
     # ---- alarms ----
 

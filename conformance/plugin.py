@@ -387,8 +387,7 @@ def _finish(run: Xac1Run) -> None:
         run.dut.test = "(session end: restore)"
         run.dut.latched = None  # after an interruption nobody knows: the restore resets alarms first
         if run.snapshot is not None:
-            if run.progress is not None:
-                run.progress.current = "restoring the device"
+            _say(run, "xac1 conformance: restoring the device's points, OUT ports and position...")
             run.restore_report = restore(run.dut, run.snapshot)
     finally:
         with contextlib.suppress(Exception):  # a port that went away cannot close cleanly; nothing to lose
@@ -405,9 +404,9 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         run.interrupted_by = (run.policy.interrupted_by if run.policy is not None else None) or "SIGINT"
         run.abort = f"interrupted ({run.interrupted_by}) before every check ran"
     if run.dut is not None and not run.restored:
-        if run.snapshot is not None:
-            _say(run, "xac1: restoring the device's points, OUT ports and position...")
         _finish(run)
+    if run.interrupted_by is None and run.policy is not None and run.policy.interrupted_by:
+        run.interrupted_by = run.policy.interrupted_by  # a signal during the restore: ignored, but said
     from .report import build, terminal_lines, write_file
 
     rep = build(run)
@@ -448,6 +447,7 @@ def _junit(path: Path, rep: Any) -> None:
 
 def _say(run: Xac1Run, text: str) -> None:
     if run.progress is not None:
+        run.progress.current = text.removeprefix("xac1 conformance: ")
         run.progress.say(text)
     else:
         print("\n" + text, flush=True)

@@ -98,10 +98,15 @@ class RestoreReport:
 
 def _ask(dut: DeviceUnderTest, frame: Frame) -> Probe:
     """Send ``frame``; after silence, check the device is there (``StoppedAnswering`` if not) and ask
-    once more, so one lost answer neither stops the snapshot nor the restore."""
+    once more; after an answer of another command or a damaged one (a late answer, a corrupted byte),
+    let the line go quiet and ask once more. One lost or spoiled answer stops neither the snapshot nor
+    the restore (every command sent here is read-only or writes back the same values)."""
     p = dut.send(frame)
     if p.silent:
         dut.settle()
+        return dut.send(frame)
+    if p.alarm is None and (p.frame is None or p.frame.header != frame.header or p.errors):
+        dut.drain(min(dut.settings.timeout, 0.3))
         p = dut.send(frame)
     return p
 
@@ -139,6 +144,7 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
     """Write back what changed and verify it by reading again; never raises for device trouble."""
     out = RestoreReport()
     try:
+        dut.drain(min(dut.settings.timeout, 0.3))  # an interrupted probe's answer may still be coming
         dut.settle()
         changed = 0
         for n in POINTS:

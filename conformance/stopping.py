@@ -39,11 +39,15 @@ class Interrupted(KeyboardInterrupt):
 
 
 def _say(text: str) -> None:
-    """One line on stderr, straight to the file descriptor (safe inside a signal handler)."""
+    """One line on the process's stderr (pytest may have replaced ``sys.stderr``), straight to the file
+    descriptor: safe inside a signal handler."""
+    err = sys.__stderr__
+    if err is None:
+        return
     with contextlib.suppress(OSError, ValueError, RuntimeError):
-        sys.stderr.flush()
+        err.flush()
     with contextlib.suppress(OSError, ValueError, AttributeError):
-        os.write(sys.stderr.fileno(), (text + "\n").encode("utf-8", "replace"))
+        os.write(err.fileno(), (text + "\n").encode("utf-8", "replace"))
 
 
 class StopPolicy:
@@ -53,6 +57,7 @@ class StopPolicy:
         self.program = program
         self.signum: int | None = None
         self.what = "stopping: the device is restored, then the report follows"
+        self.late: int | None = None  # the first signal that came while the ending was under way
         self._previous: dict[int, Any] = {}
 
     @property
@@ -78,6 +83,8 @@ class StopPolicy:
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         if self.signum is not None:
+            if self.signum == -1 and self.late is None:
+                self.late = signum
             _say(f"{self.program}: {signal_name(signum)} ignored: {self.what}")
             return
         self.signum = signum
@@ -86,4 +93,6 @@ class StopPolicy:
 
     @property
     def interrupted_by(self) -> str | None:
-        return None if self.signum in (None, -1) else signal_name(self.signum)  # type: ignore[arg-type]
+        if self.signum is None or self.signum == -1:
+            return None if self.late is None else signal_name(self.late)
+        return signal_name(self.signum)
