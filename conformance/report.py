@@ -25,7 +25,7 @@ from .results import ERROR, FAIL, MANUAL, PASS, SKIP, Result, result_from
 EVIDENCE_LIMIT = 12  # probes listed per check in the report file
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_COULD_NOT_GO_ON, EXIT_INCOMPLETE = 0, 1, 2, 3, 4
 # Turnaround under this is what an in-process or time-scaled simulator gives: not worth a table.
-MEANINGFUL_TURNAROUND_S = 0.0005
+MEANINGFUL_TURNAROUND_S = 0.001
 _OPTION = re.compile(r"(--[a-z][a-z0-9-]*(?: (?:LO:HI|S|[0-9A-F][0-9A-Fa-fx,:]*))?)")
 GROUP_TITLES = {
     "power_on": "power-on behaviour", "alarms": "alarm latching and reset", "echo": "echo answers",
@@ -149,7 +149,7 @@ class Report:
         if self.failed or self.safety_problems:
             return "DOES NOT CONFORM"
         if self.stopped:
-            return "COULD NOT GO ON"
+            return "THE DEVICE STOPPED ANSWERING"
         if self.abort and not self.interrupted:
             return "NOT TESTED" if not self.passed else "COULD NOT GO ON"
         if self.interrupted or self.missing or self.safety_unverified or not self.passed:
@@ -178,6 +178,8 @@ class Report:
             line = (f"INCOMPLETE: {self.missing} of {self.total} checks not run (the run was interrupted "
                     f"by {self.interrupted})") if head == "INCOMPLETE" else line + \
                 f" (the run was interrupted by {self.interrupted})"
+        elif head == "THE DEVICE STOPPED ANSWERING":
+            line = f"{head}: the run did not complete ({counts})"
         elif head == "COULD NOT GO ON":
             line += "; the run stopped early (see why above)"
         if self.safety_unverified:
@@ -190,7 +192,8 @@ class Report:
             return EXIT_INTERRUPTED
         if head == "DOES NOT CONFORM":
             return EXIT_FAILED
-        if head in ("NO ANSWER FROM THE DEVICE", "COULD NOT GO ON", "NOT TESTED") or self.safety_unverified:
+        could_not = ("NO ANSWER FROM THE DEVICE", "THE DEVICE STOPPED ANSWERING", "COULD NOT GO ON", "NOT TESTED")
+        if head in could_not or self.safety_unverified:
             return EXIT_COULD_NOT_GO_ON
         if head == "INCOMPLETE":
             return EXIT_OK if allow_incomplete else EXIT_INCOMPLETE
@@ -219,7 +222,8 @@ class Report:
     @property
     def timing_meaningful(self) -> bool:
         """Turnaround statistics mean something only when answers took measurable time."""
-        return any(med >= MEANINGFUL_TURNAROUND_S for _h, _n, _lo, med, _hi in self.timing)
+        medians = sorted(med for _h, _n, _lo, med, _hi in self.timing)
+        return bool(medians) and medians[len(medians) // 2] >= MEANINGFUL_TURNAROUND_S
 
     @property
     def skip_reasons(self) -> list[tuple[str, list[str]]]:

@@ -36,9 +36,10 @@ def device(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     state = tmp_path / "state.json"
     points = {f"{n:X}": dict(zip(("v", "a", "o", "pos"), d, strict=True)) for n, d in HELD.items()}
     state.write_text(json.dumps({"format": "xac1sim-state", "version": 1, "points": points}))
-    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "sim", "--tcp", "127.0.0.1:0", "--time-scale",
-                             "0", "--delay", "15", "--state", str(state)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    command = [sys.executable, "-m", "xac1_proto", "sim", "--tcp", "127.0.0.1:0", "--time-scale", "0",
+               "--delay", "15", "--state", str(state)]
+    proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            text=True)
     try:
         url = proc.stdout.readline().strip()
         assert url.startswith("socket://"), url
