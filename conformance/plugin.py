@@ -425,7 +425,7 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         run.verdict_line = (f"NOT TESTED: -k {select!r} matches no check (names look like "
                             f"'framing', 'answer_length', 'read_back_after_write')" if select
                             else "NOT TESTED: no check was collected")
-        status = pytest.ExitCode.USAGE_ERROR
+        status = 2  # as for bad options (pytest's own code for this, 5, says nothing)
     run.exit_status = int(status)
     session.exitstatus = status
     if run.progress is not None:

@@ -192,7 +192,8 @@ class Report:
             return EXIT_INTERRUPTED
         if head == "DOES NOT CONFORM":
             return EXIT_FAILED
-        could_not = ("NO ANSWER FROM THE DEVICE", "THE DEVICE STOPPED ANSWERING", "COULD NOT GO ON", "NOT TESTED")
+        could_not = ("NO ANSWER FROM THE DEVICE", "THE DEVICE STOPPED ANSWERING", "COULD NOT GO ON",
+                     "NOT TESTED")
         if head in could_not or self.safety_unverified:
             return EXIT_COULD_NOT_GO_ON
         if head == "INCOMPLETE":

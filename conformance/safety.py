@@ -36,7 +36,7 @@ from xac1_proto.frames import (
     WritePoint,
 )
 
-from .dut import DeviceAbort, DeviceUnderTest, MotionRefused, StoppedAnswering
+from .dut import DeviceAbort, DeviceUnderTest, MotionRefused, PortLost, StoppedAnswering
 from .evidence import Probe, describe_answer
 
 POINTS = range(spec.FIELDS["n"].command_range[0], spec.FIELDS["n"].command_range[1] + 1)
@@ -175,7 +175,7 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
             out.lines.append(f"OUT ports unchanged ({snap.outputs})")
         _restore_position(dut, snap, out)
         _mode(dut, out)
-    except StoppedAnswering as exc:
+    except (StoppedAnswering, PortLost) as exc:
         out.unverified.append(f"the restore could not be done or verified: {exc}")
         out.unverified += _changes_sent(dut, snap)
     except DeviceAbort as exc:
