@@ -77,8 +77,9 @@ def test_passes_the_simulator_with_report(tmp_path):
     assert "CONFORMS: 98 passed, 0 failed (of 98 checks of stated rules)" in r.stdout.splitlines()[-1]
     assert "by rule group:" in r.stdout
     text = report.read_text()
-    for part in ("Verdict: CONFORMS", "firmware version | 100", "xac1sim://", "`'0RV' CR LF -> '0RV100' CR LF`",
-                 "## Information", "silent item 1", "## Safety", "## Summary by rule group"):
+    for part in ("Verdict: CONFORMS", "firmware version | 100", "xac1sim://",
+                 "`'0RV' CR LF -> '0RV100' CR LF`", "## Information", "silent item 1", "## Safety",
+                 "## Summary by rule group"):
         assert part in text, part
     assert "## Answer turnaround" not in text  # the in-process simulator answers in no time: no statistics
     assert not failed_checks(junit)
@@ -94,7 +95,8 @@ def test_html_report_and_skips_are_explained(tmp_path):
         status = sim.model.status()
     assert r.returncode == 4, r.stdout[-3000:]
     last = r.stdout.splitlines()[-1]
-    assert "INCOMPLETE:" in last and "to run them: --fresh, --scratch-points 1,2, --allow-motion, --safe-range LO:HI, no -k" in last
+    assert "INCOMPLETE:" in last, last
+    assert "to run them: --fresh, --scratch-points 1,2, --allow-motion, --safe-range LO:HI, no -k" in last
     page = report.read_text()
     assert page.startswith("<!DOCTYPE html>") and "SKIP" in page and "pass --allow-motion" in page
     assert "pass --fresh" in page and "--xac1-" not in page  # the options of the command that was run
