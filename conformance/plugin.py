@@ -387,7 +387,7 @@ def _finish(run: Xac1Run) -> None:
         run.dut.test = "(session end: restore)"
         run.dut.latched = None  # after an interruption nobody knows: the restore resets alarms first
         if run.snapshot is not None:
-            _say(run, "xac1 conformance: restoring the device's points, OUT ports and position...")
+            _say(run, "xac1: restoring the device's points, OUT ports and position...")
             run.restore_report = restore(run.dut, run.snapshot)
     finally:
         with contextlib.suppress(Exception):  # a port that went away cannot close cleanly; nothing to lose
@@ -447,7 +447,7 @@ def _junit(path: Path, rep: Any) -> None:
 
 def _say(run: Xac1Run, text: str) -> None:
     if run.progress is not None:
-        run.progress.current = text.removeprefix("xac1 conformance: ")
+        run.progress.current = text.removeprefix("xac1: ")
         run.progress.say(text)
     else:
         print("\n" + text, flush=True)

@@ -61,6 +61,14 @@ def failed_checks(junit: Path) -> set[str]:
             if case.find("failure") is not None or case.find("error") is not None}
 
 
+def failure_messages(junit: Path) -> dict[str, str]:
+    root = ET.parse(junit).getroot()
+    return {case.get("name", ""): (case.find("failure") if case.find("failure") is not None
+                                   else case.find("error")).get("message", "")
+            for case in root.iter("testcase")
+            if case.find("failure") is not None or case.find("error") is not None}
+
+
 def read_table(url: str) -> tuple[list[tuple[int, int, int, int]], int]:
     """Every point's V, A, O, Pos and the OUT ports, read through a plain client."""
     with Client(url, timeout=2) as c:
@@ -108,11 +116,12 @@ def deviation_runs(tmp_path_factory):
     """All deviation runs at once (two at a time), each with its JUnit XML."""
     base = tmp_path_factory.mktemp("deviations")
 
-    def one(name: str) -> tuple[int, set[str], str]:
+    def one(name: str) -> tuple[int, set[str], str, dict[str, str]]:
         junit = base / f"{name}.xml"
-        r = conformance(["--port", f"xac1sim://?time_scale=0&deviation={name}", "--junitxml", str(junit),
+        r = conformance(["--port", f"xac1sim://?time_scale=0&deviation={name}", "--junit", str(junit),
                          *FAST], base)
-        return r.returncode, failed_checks(junit) if junit.exists() else set(), r.stdout[-2000:]
+        return (r.returncode, failed_checks(junit) if junit.exists() else set(), r.stdout[-2000:],
+                failure_messages(junit) if junit.exists() else {})
 
     with ThreadPoolExecutor(max_workers=2) as pool:
         return dict(zip(EXPECTED, pool.map(one, EXPECTED), strict=True))
@@ -126,10 +135,23 @@ def test_every_deviation_is_listed():
 @pytest.mark.parametrize("deviation", sorted(EXPECTED))
 def test_deviation_fails_the_right_check(deviation_runs, deviation):
     """With one stated rule broken ({deviation}), the suite exits 1 and the check of that rule fails."""
-    code, failed, out = deviation_runs[deviation]
+    code, failed, out, _messages = deviation_runs[deviation]
     assert code == 1, out
     want = EXPECTED[deviation]
     assert any(name == want or name.startswith(want + "[") for name in failed), (want, sorted(failed), out)
+
+
+@pytest.mark.parametrize("deviation", sorted(EXPECTED))
+def test_deviation_failure_says_expected_and_received(deviation_runs, deviation):
+    """The failure of the check that catches {deviation} says what was expected and what came back, in
+    the project's escaped byte form (never a Python byte repr)."""
+    _code, _failed, out, messages = deviation_runs[deviation]
+    want = EXPECTED[deviation]
+    mine = {name: m for name, m in messages.items() if name == want or name.startswith(want + "[")}
+    assert mine, (want, sorted(messages), out)
+    for name, message in mine.items():
+        assert "expected" in message and "received" in message, (name, message)
+        assert "b'" not in message and 'b"' not in message, (name, message)
 
 
 def test_other_silent_choices_still_pass_over_tcp(tmp_path):

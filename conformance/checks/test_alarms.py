@@ -85,7 +85,8 @@ def test_estop_survives_reset(xac1_dut):
         after = xac1_dut.send(ReadVersion())
         xac1_dut.info("0%C during emergency stop", "silent item 3", describe_answer(r), r)
         expect(after.alarm is not None and after.alarm.code == spec.ALARM_ESTOP,
-               f"0%C cleared the emergency stop: the next command got {describe_answer(after)}",
+               f"0%C cleared the emergency stop: the next command (0RV): expected the alarm answer 0%%0E, "
+               f"received {describe_answer(after)}",
                first, r, after)
     finally:
         sim.set_estop(False)

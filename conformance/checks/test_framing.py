@@ -39,16 +39,17 @@ def test_answer_length(xac1_dut, xac1_kit, header):
 def test_crlf(xac1_dut, xac1_kit, header):
     """The answer to {id} ends with CR LF (docs/protocol.md "Framing")."""
     p = _normal_sample(xac1_kit, header)
-    expect(p.raw.endswith(spec.TERMINATOR), f"{header} answer: expected to end with CR LF, it ends with "
-                                            f"{show_bytes(p.raw[-2:])}", p)
+    expect(p.raw.endswith(spec.TERMINATOR),
+           f"{header} answer: expected CR LF as the last two bytes, received {show_bytes(p.raw[-2:])} "
+           f"(the answer: {show_bytes(p.raw)})", p)
 
 
 @pytest.mark.parametrize("header", KINDS)
 def test_leading_zero(xac1_dut, xac1_kit, header):
     """The answer to {id} starts with the digit 0, not the letter O (docs/protocol.md "Framing")."""
     p = _normal_sample(xac1_kit, header)
-    expect(p.raw[:1] == spec.LEAD, f"{header} answer: expected to start with the digit 0, it starts with "
-                                   f"{show_bytes(p.raw[:1])}", p)
+    expect(p.raw[:1] == spec.LEAD, f"{header} answer: expected the digit 0 as the first byte, "
+                                   f"received {show_bytes(p.raw[:1])} (the answer: {show_bytes(p.raw)})", p)
 
 
 @pytest.mark.parametrize("header", [pytest.param(h, marks=pytest.mark.xac1_motion, id=h) if h in NEEDS_MOTION
