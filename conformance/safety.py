@@ -111,10 +111,22 @@ def _ask(dut: DeviceUnderTest, frame: Frame) -> Probe:
     return p
 
 
+def _late(dut: DeviceUnderTest, p: Probe) -> str:
+    """A hint when an answer may have come late: none in time, partial, or bytes that arrived before a
+    later command (a late answer)."""
+    late = p.partial or p.exchange.stale or any(q.exchange.stale for q in dut.log[-6:])
+    if late:
+        return (f"; answers come later than {dut.settings.timeout:g} s: a slow device needs a longer wait, "
+                f"e.g. {dut.settings.flag('timeout')} {2 * dut.settings.timeout:g}")
+    if p.timed_out:
+        return f"; if the device is slow to answer, try a longer wait: {dut.settings.flag('timeout')} S"
+    return ""
+
+
 def _read_point(dut: DeviceUnderTest, n: int) -> PointData:
     p = _ask(dut, ReadPoint(n=n))
     if not isinstance(p.frame, ReadPointAnswer):  # data that decodes is kept, even from a flawed answer
-        raise DeviceAbort(f"cannot read point {n:X}: {describe_answer(p)} ({p.show()})")
+        raise DeviceAbort(f"cannot read point {n:X}: {describe_answer(p)} ({p.show()}){_late(dut, p)}")
     f = p.frame
     return PointData(f.v, f.a, f.o, f.pos)
 
@@ -122,7 +134,7 @@ def _read_point(dut: DeviceUnderTest, n: int) -> PointData:
 def _read_outputs(dut: DeviceUnderTest) -> int:
     p = _ask(dut, ReadOutputs())
     if not isinstance(p.frame, ReadOutputsAnswer):
-        raise DeviceAbort(f"cannot read the OUT ports: {describe_answer(p)} ({p.show()})")
+        raise DeviceAbort(f"cannot read the OUT ports: {describe_answer(p)} ({p.show()}){_late(dut, p)}")
     return p.frame.o
 
 
