@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .evidence import Probe
 from .results import ERROR, FAIL, MANUAL, PASS, SKIP, Result, result_from
 
 EVIDENCE_LIMIT = 12  # probes listed per check in the report file
@@ -330,7 +329,8 @@ def terminal_lines(rep: Report) -> list[tuple[str, str]]:
         out.append((f"  {r.message}", ""))
         for p in r.probes[:6]:
             out.append((f"    {p.show()}", ""))
-    if rep.checks or rep.not_run_checks:
+    tested = bool(rep.passed or rep.failed)  # an early stop tested nothing: no blocks about checks
+    if tested:
         out.append(("", ""))
         out.append(("by rule group:", "bold"))
         for g in rep.groups:
@@ -338,7 +338,7 @@ def terminal_lines(rep: Report) -> list[tuple[str, str]]:
                      (g.skipped + g.not_run, "not run"), (g.manual, "manual")) if n]
             style = {FAIL: "bad", SKIP: "warn", PASS: "good"}[g.verdict]
             out.append((f"  {g.verdict:<4}  {g.title}: {', '.join(parts)}", style))
-    if rep.skip_reasons:
+    if rep.skip_reasons and tested:
         out.append(("", ""))
         out.append(("checks not run (never a failure, but not an acceptance either); to run them:", "bold"))
         for why, names in rep.skip_reasons:
@@ -360,7 +360,7 @@ def terminal_lines(rep: Report) -> list[tuple[str, str]]:
     out += [(f"safety note: {line}", "warn") for line in rep.safety_warnings]
     out += [(f"safety PROBLEM: {line}", "bad") for line in rep.safety_problems]
     out += [(f"safety NOT RESTORED: {line}", "bad") for line in rep.safety_unverified]
-    if rep.not_run_checks:
+    if rep.not_run_checks and tested:
         out.append((f"not run: {_grouped(rep.not_run_checks)}", "warn"))
     if rep.abort:
         out.append((f"run stopped: {rep.abort}", "bad"))
@@ -423,10 +423,6 @@ def write_file(path: Path, rep: Report) -> None:
     """Markdown or HTML by the file's suffix."""
     text = html_page(rep) if kind_of(path) == "html" else markdown(rep)
     path.write_text(text, encoding="utf-8")
-
-
-def shown(p: Probe) -> str:
-    return p.show()
 
 
 __all__ = ["Report", "Result", "build", "html_page", "markdown", "result_from", "terminal_lines",
