@@ -16,6 +16,7 @@ import importlib.util
 import shlex
 import sys
 from pathlib import Path
+from typing import Any
 
 HELP = "run the conformance suite against a controller (default: the built-in simulator) and report"
 
@@ -92,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
 
     policy = StopPolicy().install()  # until the plugin takes over: a signal ends the run quietly
     try:
-        return _run(args)
+        return _run(args, policy)
     except Interrupted as exc:
         print(f"xac1 conformance: INCOMPLETE: nothing was checked (the run was interrupted by {exc.name} "
               f"before it began; nothing was sent) (exit status 2)", flush=True)
@@ -101,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         policy.uninstall()
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, policy: Any) -> int:
     missing = [m for m in ("pytest", "hypothesis") if importlib.util.find_spec(m) is None]
     if missing:
         print(f"xac1 conformance: needs {' and '.join(missing)}: pip install 'xac1-proto[conformance]'",
@@ -138,6 +139,7 @@ def _run(args: argparse.Namespace) -> int:
 
     last = LastWord()
     status = int(pytest.main(pytest_args(args), plugins=[last]))
+    policy.ending("the run has ended; its verdict follows")
     if last.status is not None:
         status = last.status
     if last.verdict:
