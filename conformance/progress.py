@@ -33,7 +33,8 @@ class Progress:
         return f"{time.monotonic() - self.started:5.1f} s"
 
     def __rich__(self) -> Text:
-        return Text(f"xac1 conformance: [{self.done}/{self.total}] {self.current}  {self.elapsed()}")
+        return Text(f"xac1 conformance: {self.elapsed()} [{self.done}/{self.total}] {self.current}",
+                    no_wrap=True, overflow="ellipsis")
 
     def say(self, text: str) -> None:
         """A line that stays (above the live line on a terminal)."""
