@@ -1,8 +1,11 @@
 """``xac1 conformance``: run the installed conformance suite against a device (default: the simulator).
 
 The suite is the ``conformance.checks`` package; this runs it with pytest in-process, isolated from
-whatever pytest configuration the current directory has, and exits 0 only when every check of a stated
-rule passed (skipped checks do not count against the device).
+whatever pytest configuration the current directory has, with pytest's own terminal output off: the
+operator reads the suite's words only (a live progress line, then the summary and the verdict, which is
+always printed). Exit status (README "Conformance"): 0 conforms, 1 a check failed, 2 bad options or
+interrupted (Ctrl-C, SIGTERM, SIGHUP: the device is restored first), 3 the run could not go on, 4
+incomplete (checks of stated rules not run; ``--allow-incomplete`` makes it 0).
 """
 
 from __future__ import annotations
@@ -10,8 +13,10 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import importlib.util
+import shlex
 import sys
 from pathlib import Path
+from typing import Any
 
 HELP = "run the conformance suite against a controller (default: the built-in simulator) and report"
 
@@ -33,7 +38,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--restore-mode0", action="store_true",
                    help="send 0CM0 last: the controller ends in mode 0 (external start inputs enabled again)")
     p.add_argument("--report", metavar="FILE", help="write an acceptance report (.md or .html)")
-    p.add_argument("--junitxml", metavar="FILE", help="write JUnit XML results")
+    p.add_argument("--junit", "--junitxml", metavar="FILE", dest="junit",
+                   help="write JUnit XML: checks of stated rules as tests, information as properties")
+    p.add_argument("--unit-id", metavar="TEXT", help="the unit's serial number or asset tag (in the report)")
+    p.add_argument("--operator", metavar="NAME", help="who ran the acceptance (in the report)")
+    p.add_argument("--station", metavar="TEXT", help="the test station or rack position (in the report)")
+    p.add_argument("--note", metavar="TEXT", help="a note for the report")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="exit 0 when nothing failed although checks were not run (the verdict still says "
+                        "INCOMPLETE): for a deliberately partial run")
     p.add_argument("--seed", metavar="N", type=int, help="seed of the random command sequences (default 0)")
     p.add_argument("--examples", metavar="N", type=int, help="random command sequences to try")
     p.add_argument("--timeout", metavar="S", type=float, help="seconds to wait for an answer")
@@ -53,9 +66,11 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
            "-W", "ignore::pytest.PytestAssertRewriteWarning"]  # the CLI imported the package first
     if not _plugin_registered():
         out += ["-p", "conformance.plugin"]
-    out += ["-v", "--tb=short"] if args.verbose else ["-q", "--no-header", "--tb=no", "-rN"]
+    out += ["-v", "--tb=short"] if args.verbose else ["-p", "no:terminal", "--capture=sys"]
     for flag, value in (("--xac1-port", args.port), ("--xac1-safe-range", args.safe_range),
-                        ("--xac1-report", args.report), ("--junitxml", args.junitxml),
+                        ("--xac1-report", args.report), ("--xac1-junit", args.junit),
+                        ("--xac1-unit-id", args.unit_id), ("--xac1-operator", args.operator),
+                        ("--xac1-station", args.station), ("--xac1-note", args.note),
                         ("--xac1-seed", args.seed), ("--xac1-examples", args.examples),
                         ("--xac1-timeout", args.timeout), ("--xac1-scratch-points", args.scratch_points),
                         ("-k", args.select)):
@@ -67,10 +82,27 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
         out.append("--xac1-fresh")
     if args.restore_mode0:
         out.append("--xac1-restore-mode0")
-    return out + ["--xac1-cli"]
+    if args.allow_incomplete:
+        out.append("--xac1-allow-incomplete")
+    command_line = shlex.join(["xac1", *sys.argv[1:]])
+    return out + ["--xac1-cli", "--xac1-command-line", command_line]
 
 
 def run(args: argparse.Namespace) -> int:
+    from .stopping import Interrupted, StopPolicy
+
+    policy = StopPolicy().install()  # until the plugin takes over: a signal ends the run quietly
+    try:
+        return _run(args, policy)
+    except Interrupted as exc:
+        print(f"xac1 conformance: INCOMPLETE: nothing was checked (the run was interrupted by {exc.name} "
+              f"before it began; nothing was sent) (exit status 2)", flush=True)
+        return 2
+    finally:
+        policy.uninstall()
+
+
+def _run(args: argparse.Namespace, policy: Any) -> int:
     missing = [m for m in ("pytest", "hypothesis") if importlib.util.find_spec(m) is None]
     if missing:
         print(f"xac1 conformance: needs {' and '.join(missing)}: pip install 'xac1-proto[conformance]'",
@@ -79,30 +111,40 @@ def run(args: argparse.Namespace) -> int:
     from .settings import Settings, SettingsError
 
     try:
-        Settings.make(args.port, args.allow_motion, args.fresh, args.safe_range, args.seed, args.examples,
-                      args.timeout, args.scratch_points, args.restore_mode0, cli=True)
+        settings = Settings.make(args.port, args.allow_motion, args.fresh, args.safe_range, args.seed,
+                                 args.examples, args.timeout, args.scratch_points, args.restore_mode0,
+                                 cli=True)
     except SettingsError as exc:
         print(f"xac1 conformance: {str(exc).replace('--xac1-', '--')}", file=sys.stderr)
         return 2
-    if args.report and Path(args.report).suffix.lower() not in (".md", ".markdown", ".html", ".htm"):
-        print(f"xac1 conformance: --report {args.report}: the name must end in .md or .html", file=sys.stderr)
+    from .plugin import RUN_KEY, check_outputs
+
+    problem = check_outputs(args.report, args.junit, settings.flag)
+    if problem:
+        print(f"xac1 conformance: {problem}; nothing was sent", file=sys.stderr)
         return 2
+    print(f"xac1 conformance: testing {settings.port}", flush=True)
     import pytest
 
-    from .plugin import RUN_KEY
-
     class LastWord:
-        """Keeps the run's verdict line, printed after pytest's own counts (which include information
-        records and so differ from the suite's)."""
+        """Keeps the run's verdict line and exit status (the plugin decides both)."""
 
         verdict: str | None = None
+        status: int | None = None
 
         def pytest_unconfigure(self, config: pytest.Config) -> None:
             run = config.stash.get(RUN_KEY, None)
-            self.verdict = run.verdict_line if run is not None else None
+            if run is not None:
+                self.verdict, self.status = run.verdict_line, run.exit_status
 
     last = LastWord()
     status = int(pytest.main(pytest_args(args), plugins=[last]))
+    policy.ending("the run has ended; its verdict follows")
+    if last.status is not None:
+        status = last.status
     if last.verdict:
         print(f"xac1 conformance: {last.verdict} (exit status {status})", flush=True)
+    elif status == 2:
+        print("xac1 conformance: INCOMPLETE: nothing was checked (the run was interrupted before it began) "
+              "(exit status 2)", flush=True)
     return status

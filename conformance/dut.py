@@ -16,11 +16,14 @@ else ``StoppedAnswering``) and every later probe fails at once without being sen
 from __future__ import annotations
 
 import statistics
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from serial import SerialException
+
 from xac1_proto import spec
-from xac1_proto.codec import diagnose
+from xac1_proto.codec import diagnose, show_bytes
 from xac1_proto.errors import CommunicationHalted, ResponseTimeout
 from xac1_proto.frames import (
     AlarmAnswer,
@@ -46,6 +49,11 @@ class DeviceAbort(Exception):
 
 class NoAnswer(DeviceAbort):
     """The device gave no byte back to a reset and a version request: nothing else can be judged."""
+
+
+class PortLost(DeviceAbort):
+    """The port itself failed (adapter unplugged, socket closed, device file gone): nothing more can be sent
+    on it, so the run stops at once (the restore is then reported as not done)."""
 
 
 class StoppedAnswering(DeviceAbort):
@@ -87,6 +95,7 @@ class DeviceUnderTest:
         self.cited: dict[str | None, list[Probe]] = {}
         self.gone: str | None = None  # why the device is taken for gone (StoppedAnswering), else None
         self.silent_in_row = 0  # probes in a row that got not a single byte back
+        self.lost: str | None = None  # why the port failed (PortLost), else None
         self._checking = False  # inside the liveness check (no nested one)
 
     @classmethod
@@ -103,11 +112,17 @@ class DeviceUnderTest:
     def probe(self, raw: bytes, *, timeout: float | None = None) -> Probe:
         """Send ``raw`` (always ending in LF) through ``transact`` and record what came back."""
         if not raw.endswith(b"\n"):
-            raise ValueError(f"probe {raw!r} does not end with LF (docs/protocol.md silent item 1)")
+            raise ValueError(f"probe {show_bytes(raw)} does not end with LF (docs/protocol.md silent item 1)")
         if self.gone is not None:
             raise StoppedAnswering(self.gone)
-        command, _ = diagnose(raw, spec.COMMAND)
+        if self.lost is not None:
+            raise PortLost(self.lost)
+        command, problems = diagnose(raw, spec.COMMAND)
         self._guard(raw, command)
+        if timeout is None and problems:
+            # A malformed command is answered (an alarm) or not at once: no move to wait for, even when
+            # its fields read as a move (vel 00 would make the wait endless).
+            timeout = self.settings.timeout
         try:
             ex = self.client.transact(raw, timeout=timeout)
         except ResponseTimeout as exc:
@@ -117,6 +132,10 @@ class DeviceUnderTest:
         except CommunicationHalted as exc:
             raise DeviceAbort(f"the client stopped sending after repeated communication errors "
                               f"(the vendor's host duty): {exc}") from exc
+        except (SerialException, OSError) as exc:  # after ResponseTimeout, itself a TimeoutError
+            self.lost = (f"the port {self.settings.port} failed while sending {show_bytes(raw)}: {exc}. "
+                         f"The adapter or device went away (unplugged, powered off, connection closed)")
+            raise PortLost(self.lost) from None
         else:
             p = Probe(self.test, ex)
             self._learn(command, p)
@@ -154,7 +173,7 @@ class DeviceUnderTest:
         if s.simulator:
             return  # nothing to damage: the suite may probe any target, even beyond the stroke
         if not isinstance(command, (MovePoint, MoveDirect)):
-            raise MotionRefused(f"a malformed move command {raw!r} is only sent to the simulator")
+            raise MotionRefused(f"a malformed move command ({show_bytes(raw)}) is only sent to the simulator")
         homing = isinstance(command, MovePoint) and command.n == 0
         if self.budget.homed is None and not self.latched:
             self.current_position()  # learn whether the move would home first
@@ -172,6 +191,24 @@ class DeviceUnderTest:
             target = point.pos
         if not s.in_range(target):
             raise MotionRefused(f"target 0x{target:06X} is outside the safe range {s.describe_range()}")
+
+    def drain(self, quiet: float) -> bytes:
+        """Read and drop what comes until the line has been quiet for ``quiet`` seconds (at most ten
+        times that): the late answer of a probe an interruption cut short must not pass for the answer
+        to the next command."""
+        port = self.client.port
+        out = b""
+        start = last = time.monotonic()
+        try:
+            while time.monotonic() - last < quiet and time.monotonic() - start < 10 * quiet:
+                data = port.read(max(1, port.in_waiting))
+                if data:
+                    out += data
+                    last = time.monotonic()
+        except (SerialException, OSError) as exc:
+            self.lost = f"the port {self.settings.port} failed: {exc}"
+            raise PortLost(self.lost) from None
+        return out
 
     # ---- alarms ----
 
@@ -268,6 +305,7 @@ class DeviceUnderTest:
         """(command, count, min, median, max) of answer turnaround in seconds, per command header."""
         return [(h, len(v), min(v), statistics.median(v), max(v))
                 for h, v in sorted(self.latencies.items()) if v]
+
 
 
 def is_alarm(p: Probe, code: int | None = None) -> bool:

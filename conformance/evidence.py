@@ -7,9 +7,11 @@ exact bytes sent and received next to the verdict.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from xac1_proto import spec
+from xac1_proto.codec import show_bytes
 from xac1_proto.errors import Violation
 from xac1_proto.exchange import Exchange
 from xac1_proto.frames import AlarmAnswer, Frame
@@ -100,11 +102,11 @@ class Probe:
                 and frame.header == command.header and frame.fields() == command.fields())
 
     def show(self) -> str:
-        got = wire(self.raw) if self.raw else f"no answer{self._partial()}"
-        return f"{wire(self.sent)} -> {got}"
+        got = show_bytes(self.raw) if self.raw else f"no answer{self._partial()}"
+        return f"{show_bytes(self.sent)} -> {got}"
 
     def _partial(self) -> str:
-        return f" (partial: {wire(self.partial)})" if self.partial else ""
+        return f" (partial: {show_bytes(self.partial)})" if self.partial else ""
 
 
 class RuleBroken(AssertionError):
@@ -122,11 +124,25 @@ def expect(condition: object, message: str, *probes: Probe) -> None:
 
 
 def describe_answer(p: Probe) -> str:
-    """A person's summary of what came back."""
+    """A person's summary of what came back: the bytes, then the fields by name."""
     if p.timed_out:
         return "no answer (silence)" + p._partial()
     if p.frame is None:
-        return f"an undecodable answer {wire(p.raw)!r}"
+        return f"an undecodable answer {show_bytes(p.raw)}"
     if p.alarm is not None:
-        return f"alarm {p.alarm.code:02X} ({p.alarm.meaning})"
-    return str(p.frame)
+        return f"the alarm answer {show_bytes(p.raw)}: alarm {p.alarm.code:02X} ({p.alarm.meaning})"
+    return f"{show_bytes(p.raw)} ({fields_text(p.frame)})"
+
+
+def fields_text(frame: Frame) -> str:
+    """``0RP answer: N=3 V=9 A=3 O=0 Pos=012345``: the header and each field by name, as on the wire."""
+    shown = []
+    for name, value in frame.fields().items():
+        f = spec.FIELDS[name]
+        shown.append(f"{f.label}={value if f.text else f.show(value)}")
+    return f"{frame.header} {frame.role}" + (": " + " ".join(shown) if shown else "")
+
+
+def differences(want: Mapping[str, object], got: Mapping[str, object]) -> str:
+    """``A: expected 3, received 1; Pos: expected 001000, received 000000`` for the fields that differ."""
+    return "; ".join(f"{k}: expected {want[k]}, received {got.get(k)}" for k in want if want[k] != got.get(k))

@@ -13,23 +13,24 @@ answering (``StoppedAnswering``) takes back the verdict of the check it stopped 
 interrupted) instead of failing it. When the session ends, even after Ctrl-C, the device is restored
 and verified (Ctrl-C is ignored meanwhile), then the summary table and the report file are written,
 whatever stopped the run; a restore the device did not answer is reported as not verified (exit 3).
+SIGTERM and SIGHUP end the run as Ctrl-C does (``stopping.StopPolicy``); a second signal is ignored and
+said so. The verdict and exit status come from ``report.Report``: 0 conforms, 1 a check failed, 2
+interrupted, 3 could not go on, 4 incomplete (checks of stated rules not run; 0 with
+``--xac1-allow-incomplete``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as _dt
 import os
-import re
-import signal
-import threading
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 CHECKS_DIR = Path(__file__).resolve().parent / "checks"
-_SECTION = re.compile(r'PROTOCOL\.md[\s,]+((?:silent item \d+)|(?:"[^"]+"))')
 MARKERS = {
     "xac1_motion": "the check moves the actuator (needs --xac1-allow-motion and a safe range)",
     "xac1_fresh": "the check needs a freshly powered-on, never-homed device (--xac1-fresh); runs first",
@@ -59,6 +60,14 @@ class Xac1Run:
         self.verdict_line: str | None = None  # as printed in the summary (``xac1 conformance`` repeats it)
         self.started = _dt.datetime.now().astimezone()
         self.active = False
+        self.identity: dict[str, str | None] = {}  # unit_id, operator, station, note
+        self.command_line = ""
+        self.deselected = 0  # checks of stated rules left out with -k
+        self.interrupted_by: str | None = None  # SIGINT, SIGTERM, SIGHUP
+        self.policy: Any = None  # stopping.StopPolicy
+        self.progress: Any = None  # progress.Progress (xac1 conformance without pytest's terminal)
+        self.exit_status: int | None = None
+        self.write_problems: list[str] = []  # output files that could not be written
 
 
 RUN_KEY = pytest.StashKey[Xac1Run]()
@@ -89,12 +98,23 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                      "points that held data (they can be written back)")
     g.addoption("--xac1-restore-mode0", action="store_true", default=False,
                 help="send 0CM0 last, so the controller ends in mode 0 (external start inputs enabled)")
+    g.addoption("--xac1-allow-incomplete", action="store_true", default=False,
+                help="exit 0 for a run with no failure even when checks of stated rules were not run "
+                     "(a deliberately partial run; the verdict still says INCOMPLETE)")
+    g.addoption("--xac1-unit-id", metavar="TEXT", default=None, help="the unit's serial number or asset tag")
+    g.addoption("--xac1-operator", metavar="NAME", default=None, help="who ran the acceptance")
+    g.addoption("--xac1-station", metavar="TEXT", default=None, help="the test station or rack position")
+    g.addoption("--xac1-note", metavar="TEXT", default=None, help="a note for the report")
+    g.addoption("--xac1-junit", metavar="FILE", default=None,
+                help="write JUnit XML: checks of stated rules as tests, information as properties")
     g.addoption("--xac1-cli", action="store_true", default=False, help=argparse.SUPPRESS)
+    g.addoption("--xac1-command-line", default="", help=argparse.SUPPRESS)
 
 
 def _options_used(config: pytest.Config) -> bool:
     names = ("xac1_port", "xac1_allow_motion", "xac1_fresh", "xac1_safe_range", "xac1_seed",
-             "xac1_examples", "xac1_timeout", "xac1_report", "xac1_scratch_points", "xac1_restore_mode0")
+             "xac1_examples", "xac1_timeout", "xac1_report", "xac1_scratch_points", "xac1_restore_mode0",
+             "xac1_junit", "xac1_unit_id", "xac1_allow_incomplete")
     return any(config.getoption(n) not in (None, False) for n in names)
 
 
@@ -131,10 +151,39 @@ def _activate(run: Xac1Run) -> None:
                                      cli=c.getoption("xac1_cli"))
     except SettingsError as exc:
         raise pytest.UsageError(str(exc)) from None
-    report = c.getoption("xac1_report")
-    if report and Path(report).suffix.lower() not in (".md", ".markdown", ".html", ".htm"):
-        raise pytest.UsageError(f"--xac1-report {report}: the name must end in .md or .html")
+    problem = check_outputs(c.getoption("xac1_report"), c.getoption("xac1_junit"), run.settings.flag)
+    if problem:
+        raise pytest.UsageError(problem)
+    run.identity = {k: c.getoption(f"xac1_{k}") for k in ("unit_id", "operator", "station", "note")}
+    run.command_line = c.getoption("xac1_command_line")
+    from .stopping import StopPolicy
+
+    run.policy = StopPolicy("xac1 conformance" if run.settings.cli else "xac1 plugin").install()
+    if c.pluginmanager.get_plugin("terminalreporter") is None:
+        from .progress import Progress
+
+        run.progress = Progress()
     run.active = True
+
+
+def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | None:
+    """Why an output file cannot be written (checked before anything is sent), else None."""
+    from .report import kind_of
+
+    for name, path, kinds in (("report", report, ("md", "html")), ("junit", junit, ("xml",))):
+        if not path:
+            continue
+        p = Path(path)
+        if kind_of(p) not in kinds:
+            return f"{flag(name)} {path}: the name must end in {' or '.join('.' + k for k in kinds)}"
+        parent = p.parent if str(p.parent) else Path(".")
+        if p.is_dir():
+            return f"{flag(name)} {path}: that is a directory; give a file name"
+        if not parent.is_dir():
+            return f"{flag(name)} {path}: the directory {parent} does not exist"
+        if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+            return f"{flag(name)} {path}: not writable (permission denied)"
+    return None
 
 
 def _order(item: pytest.Item) -> int:
@@ -165,6 +214,15 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
                 reason=f"moves the actuator: pass {s.flag('allow-motion')} {s.flag('safe-range')} LO:HI"))
 
 
+def pytest_deselected(items: list[pytest.Item]) -> None:
+    checks = [i for i in items if is_check(i)]
+    if not checks:
+        return
+    run = _run(checks[0].config)
+    if run is not None:
+        run.deselected += sum(1 for i in checks if not i.get_closest_marker("xac1_info"))
+
+
 def pytest_collection_finish(session: pytest.Session) -> None:
     """Count the checks that will run (after -k): those the run never reaches are reported as not run."""
     run = _run(session.config)
@@ -175,6 +233,21 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     run.total_info = sum(1 for i in checks if i.get_closest_marker("xac1_info"))
     run.collected = [(i.nodeid, i.name.removeprefix("test_"), i.get_closest_marker("xac1_info") is not None)
                      for i in checks]
+    if run.progress is not None:
+        run.progress.begin(run.total)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Any:
+    run = _run(item.config)
+    progress = run.progress if run is not None and is_check(item) else None
+    if progress is not None:
+        progress.check(Path(str(item.path)).stem.removeprefix("test_"), item.name.removeprefix("test_"))
+    try:
+        return (yield)
+    finally:
+        if progress is not None:
+            progress.finished_one()
 
 
 # ---- fixtures ----
@@ -258,6 +331,7 @@ def pytest_runtest_call(item: pytest.Item) -> Any:
         return (yield)
     from .dut import MotionRefused
     from .kit import NotEnoughPoints
+    from .results import MANUAL_TAG, ManualStep
 
     try:
         return (yield)
@@ -265,6 +339,8 @@ def pytest_runtest_call(item: pytest.Item) -> Any:
         pytest.skip(f"not moved: {exc}")
     except NotEnoughPoints as exc:
         pytest.skip(str(exc))
+    except ManualStep as exc:
+        pytest.skip(MANUAL_TAG + str(exc))
 
 
 @pytest.hookimpl(wrapper=True)
@@ -273,13 +349,13 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     run = _run(item.config)
     if run is None or not run.active or not is_check(item):
         return report
-    from .dut import DeviceAbort, NoAnswer, StoppedAnswering
-    from .report import result_from
+    from .dut import DeviceAbort, NoAnswer, PortLost, StoppedAnswering
+    from .results import result_from
 
     if call.excinfo is not None and call.excinfo.errisinstance(DeviceAbort):
         run.abort = run.abort or str(call.excinfo.value)
         run.no_answer = run.no_answer or call.excinfo.errisinstance(NoAnswer)
-        run.stopped = run.stopped or call.excinfo.errisinstance(StoppedAnswering)
+        run.stopped = run.stopped or call.excinfo.errisinstance((StoppedAnswering, PortLost))
         item.session.shouldstop = "xac1: the run cannot go on (the XA-C1 conformance summary above says why)"
         if report.when != "setup" and item.nodeid not in run.interrupted:
             # Cut short (or its last exchange met the silence): no verdict, nor any record it made.
@@ -299,53 +375,88 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
 
 
 def _finish(run: Xac1Run) -> None:
-    """Restore the device once (Ctrl-C ignored meanwhile), then close it."""
+    """Restore the device once (every signal ignored meanwhile, and said so), then close it."""
     if run.restored or run.dut is None:
         return
     run.restored = True
     from .safety import restore
 
-    old = None
-    if threading.current_thread() is threading.main_thread():
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if run.policy is not None:
+        run.policy.ending("the device is being restored; the report follows")
     try:
         run.dut.test = "(session end: restore)"
+        run.dut.latched = None  # after an interruption nobody knows: the restore resets alarms first
         if run.snapshot is not None:
+            _say(run, "xac1: restoring the device's points, OUT ports and position...")
             run.restore_report = restore(run.dut, run.snapshot)
     finally:
-        try:
+        with contextlib.suppress(Exception):  # a port that went away cannot close cleanly; nothing to lose
             run.dut.close()
-        finally:
-            if old is not None:
-                signal.signal(signal.SIGINT, old)
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     run = _run(session.config)
     if run is None or not run.active:
         return
-    ctrl_c = exitstatus == pytest.ExitCode.INTERRUPTED and not run.abort
-    if ctrl_c:
-        run.abort = "interrupted (Ctrl-C) before every check ran"
+    if run.policy is not None:
+        run.policy.ending("the device is being restored; the report follows")
+    if exitstatus == pytest.ExitCode.INTERRUPTED and not run.abort:
+        run.interrupted_by = (run.policy.interrupted_by if run.policy is not None else None) or "SIGINT"
+        run.abort = f"interrupted ({run.interrupted_by}) before every check ran"
     if run.dut is not None and not run.restored:
-        if run.snapshot is not None:
-            print("\nxac1: restoring the device's points, OUT ports and position...", flush=True)
         _finish(run)
-    failed = any(r.verdict in ("FAIL", "ERROR") and not r.info for r in run.results)
-    rr = run.restore_report
-    restore_failed = rr is not None and rr.problems
-    unverified = rr is not None and rr.unverified
-    if ctrl_c:
-        pass  # pytest's own status for an interrupted run
-    elif failed or restore_failed:
-        session.exitstatus = pytest.ExitCode.TESTS_FAILED
-    elif run.abort or unverified:
-        session.exitstatus = EXIT_INCOMPLETE
-    path = session.config.getoption("xac1_report")
-    if path:
-        from .report import build, write_file
+    if run.interrupted_by is None and run.policy is not None and run.policy.interrupted_by:
+        run.interrupted_by = run.policy.interrupted_by  # a signal during the restore: ignored, but said
+    from .report import build, terminal_lines, write_file
 
-        write_file(Path(path), build(run))
+    rep = build(run)
+    c = session.config
+    problems: list[str] = []
+    for path, writer in ((c.getoption("xac1_report"), write_file), (c.getoption("xac1_junit"), _junit)):
+        if path:
+            try:
+                writer(Path(path), rep)
+            except OSError as exc:
+                problems.append(f"could not write {path}: {exc.strerror or exc}")
+    run.verdict_line = rep.verdict_line
+    status = rep.exit_status(c.getoption("xac1_allow_incomplete"))
+    if run.total == 0:
+        select = c.getoption("keyword") or ""
+        run.verdict_line = (f"NOT TESTED: -k {select!r} matches no check (names look like "
+                            f"'framing', 'answer_length', 'read_back_after_write')" if select
+                            else "NOT TESTED: no check was collected")
+        status = 2  # as for bad options (pytest's own code for this, 5, says nothing)
+    run.exit_status = int(status)
+    session.exitstatus = status
+    if run.progress is not None:
+        lines = [] if run.total == 0 else terminal_lines(rep)[:-1]
+        lines += [(f"could not write the report: {p}", "bad") for p in problems]
+        lines.append((run.verdict_line, "good" if rep.accepted else "bad"))
+        run.progress.lines(lines)
+        for path in (c.getoption("xac1_report"), c.getoption("xac1_junit")):
+            if path and not any(path in p for p in problems):
+                run.progress.say(f"written: {path}")
+    run.write_problems = problems
+
+
+def _junit(path: Path, rep: Any) -> None:
+    from .junit import write_junit
+
+    write_junit(path, rep)
+
+
+def _say(run: Xac1Run, text: str) -> None:
+    if run.progress is not None:
+        run.progress.current = text.removeprefix("xac1: ")
+        run.progress.say(text)
+    else:
+        print("\n" + text, flush=True)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    run = _run(config)
+    if run is not None and run.policy is not None:
+        run.policy.uninstall()
 
 
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
@@ -355,19 +466,14 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
     from .report import build, terminal_lines
 
     tr = terminalreporter
-    screen = getattr(getattr(tr, "_tw", None), "fullwidth", 0)
-    width = max(screen, int(os.environ.get("COLUMNS", "0") or 0), 130)
     tr.write_sep("=", "XA-C1 conformance")
+    markup = {"": {}, "good": {"green": True, "bold": True}, "bad": {"red": True, "bold": True},
+              "warn": {"yellow": True}, "bold": {"bold": True}}
     rep = build(run)
-    run.verdict_line = rep.verdict_line
-    for line, markup in terminal_lines(rep, width):
-        tr.write_line(line, **markup)
+    for line, style in terminal_lines(rep):
+        tr.write_line(line, **markup[style])
+    for p in run.write_problems:
+        tr.write_line(f"could not write the report: {p}", red=True)
     path = config.getoption("xac1_report")
     if path:
         tr.write_line(f"report written to {path}")
-
-
-def section_of(doc: str) -> str:
-    """The docs/protocol.md section a check's docstring cites ('' when none)."""
-    m = _SECTION.search(doc or "")
-    return " ".join(m.group(1).strip('"').split()) if m else ""

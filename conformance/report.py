@@ -1,75 +1,58 @@
-"""Verdicts as data and the three ways to show them: terminal table, Markdown, HTML.
+"""A run's verdict as one data model (``Report``) and the ways to show it: terminal lines, Markdown and
+HTML (Jinja2 templates ``conformance.md.j2`` / ``conformance.html.j2`` through ``xac1_proto.pages``).
 
-``result_from`` turns one check's pytest outcome into a ``Result`` (rule from the docstring, verdict,
-message, the probes as evidence); ``build`` gathers a whole run into a ``Report``; the writers only
-format it. The report is written for someone who has never seen pytest: it says what was tested, on
-what, the overall verdict, each rule with the bytes that prove it, and what the device did where the
-protocol leaves the choice open.
+How it works: ``build`` gathers a finished (or interrupted) run into a ``Report``; ``Report.verdict``
+decides the head word and ``exit_status`` the exit code, the writers only format. The verdict is
+honest: ``CONFORMS`` only when every check of a stated rule that can run over the line ran and passed
+(a check only a person can do is listed as a manual step); a run with no failure but checks not run is
+``INCOMPLETE: N of M checks not run`` naming the options that would run them (exit 4). The report is
+written for someone who has never seen pytest: the unit and who tested it, the command line, a summary by
+rule group, failures before passes, and what the device did where docs/protocol.md is silent.
 """
 
 from __future__ import annotations
 
-import html
+import re
+import shlex
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .evidence import Probe, RuleBroken, wire
+from .results import ERROR, FAIL, MANUAL, PASS, SKIP, Result, result_from
 
-PASS, FAIL, ERROR, SKIP = "PASS", "FAIL", "ERROR", "SKIP"
 EVIDENCE_LIMIT = 12  # probes listed per check in the report file
+EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_COULD_NOT_GO_ON, EXIT_INCOMPLETE = 0, 1, 2, 3, 4
+# Turnaround under this is what an in-process or time-scaled simulator gives: not worth a table.
+MEANINGFUL_TURNAROUND_S = 0.001
+_OPTION = re.compile(r"(--[a-z][a-z0-9-]*(?: (?:LO:HI|S|[0-9A-F][0-9A-Fa-fx,:]*))?)")
+GROUP_TITLES = {
+    "power_on": "power-on behaviour", "alarms": "alarm latching and reset", "echo": "echo answers",
+    "framing": "framing of answers", "malformed": "malformed commands", "motion": "moves",
+    "outputs": "OUT ports", "points": "position table", "version": "firmware version",
+    "properties": "random command sequences", "information": "information (silent points)",
+}
 
 
 @dataclass
-class Result:
-    nodeid: str
-    check: str
+class Group:
+    """The checks of one rule group (a check module): counts for the summary."""
+
     topic: str
-    rule: str
-    section: str
-    info: bool
-    verdict: str
-    message: str = ""
-    probes: list[Probe] = field(default_factory=list)
+    title: str
+    passed: int = 0
+    failed: int = 0
+    skipped: int = 0
+    manual: int = 0
+    not_run: int = 0
 
-
-def _rule(item: Any) -> str:
-    doc = (getattr(getattr(item, "function", None), "__doc__", None) or "").strip()
-    first = doc.split("\n\n")[0]
-    text = " ".join(first.split())
-    callspec = getattr(item, "callspec", None)
-    if callspec is not None:
-        text = text.replace("{id}", callspec.id)
-    return text or item.name
-
-
-def result_from(item: Any, report: Any, call: Any, dut: Any) -> Result:
-    from .plugin import section_of
-
-    probes: list[Probe] = []
-    message = ""
-    exc = call.excinfo.value if call.excinfo is not None else None
-    if report.skipped:
-        verdict = SKIP
-        lr = report.longrepr
-        message = str(lr[2] if isinstance(lr, tuple) else lr).removeprefix("Skipped: ")
-    elif report.passed:
-        verdict = PASS
-    elif isinstance(exc, AssertionError) and report.when == "call":
-        verdict = FAIL
-        message = str(exc).split("\nassert ")[0].strip()
-        if isinstance(exc, RuleBroken):
-            probes = list(exc.probes)
-    else:
-        verdict = ERROR
-        message = f"{type(exc).__name__}: {exc}" if exc is not None else str(report.longrepr)[-400:]
-    if dut is not None:
-        probes += [p for p in dut.probes_for(item.nodeid) if p not in probes]
-    module = getattr(item, "module", None)
-    topic = (module.__name__.rsplit(".", 1)[-1] if module else "").removeprefix("test_")
-    doc = getattr(getattr(item, "function", None), "__doc__", "") or ""
-    return Result(item.nodeid, item.name.removeprefix("test_"), topic, _rule(item), section_of(doc),
-                  item.get_closest_marker("xac1_info") is not None, verdict, message, probes)
+    @property
+    def verdict(self) -> str:
+        if self.failed:
+            return FAIL
+        if self.skipped or self.not_run:
+            return SKIP
+        return PASS
 
 
 @dataclass
@@ -87,11 +70,37 @@ class Report:
     abort: str | None
     safety_warnings: list[str] = field(default_factory=list)
     no_answer: bool = False  # the device never answered: nothing could be judged
-    not_run: int = 0  # checks collected but never run (the run stopped early)
+    not_run: int = 0  # checks of stated rules collected but never run (the run stopped early)
     info_skipped: list[Result] = field(default_factory=list)
-    stopped: bool = False  # the device answered, then stopped answering: the run did not complete
+    stopped: bool = False  # the device answered, then stopped answering (or its port failed)
     safety_unverified: list[str] = field(default_factory=list)  # the restore could not be done or checked
     not_run_checks: list[tuple[str, str]] = field(default_factory=list)  # (check, interrupted or not run)
+    interrupted: str | None = None  # the signal that ended the run (SIGINT, SIGTERM, SIGHUP)
+    deselected: int = 0  # checks of stated rules left out with -k
+    unit: list[tuple[str, str]] = field(default_factory=list)  # unit id, operator, station, note
+    command_line: str = ""
+    seed: int | None = None
+    kit_version: str = ""
+    junit: list[Result] = field(default_factory=list)  # every result, information included
+    not_run_topics: list[str] = field(default_factory=list)  # the group of each stated-rule check not run
+
+    # ---- what the checks say ----
+
+    @property
+    def failed(self) -> list[Result]:
+        return [r for r in self.checks if r.verdict in (FAIL, ERROR)]
+
+    @property
+    def passed(self) -> list[Result]:
+        return [r for r in self.checks if r.verdict == PASS]
+
+    @property
+    def skipped(self) -> list[Result]:
+        return [r for r in self.checks if r.verdict == SKIP]
+
+    @property
+    def manual(self) -> list[Result]:
+        return [r for r in self.checks if r.verdict == MANUAL]
 
     @property
     def all_skipped(self) -> list[Result]:
@@ -99,40 +108,129 @@ class Report:
         return self.skipped + self.info_skipped
 
     @property
-    def failed(self) -> list[Result]:
-        return [r for r in self.checks if r.verdict in (FAIL, ERROR)]
+    def ordered(self) -> list[Result]:
+        """Failures first, then skipped, manual, passed (file order within each)."""
+        rank = {FAIL: 0, ERROR: 0, SKIP: 1, MANUAL: 2, PASS: 3}
+        return sorted(self.checks, key=lambda r: rank[r.verdict])
 
     @property
-    def skipped(self) -> list[Result]:
-        return [r for r in self.checks if r.verdict == SKIP]
+    def total(self) -> int:
+        """Checks of stated rules this run could do over the line (manual steps not counted)."""
+        return len(self.checks) - len(self.manual) + self.not_run + self.deselected
+
+    @property
+    def missing(self) -> int:
+        """Checks of stated rules that have no verdict: skipped, not run, deselected."""
+        return len(self.skipped) + self.not_run + self.deselected
+
+    @property
+    def to_run_them(self) -> list[str]:
+        """The options named by the skip reasons (what would run the skipped checks)."""
+        out: dict[str, str] = {}  # option name -> the widest value asked for
+        for r in self.all_skipped:
+            for opt in _OPTION.findall(r.message):
+                name = opt.split(" ")[0]
+                if len(opt) > len(out.get(name, "")):
+                    out[name] = opt
+        hints = list(out.values())
+        if self.deselected:
+            hints.append("no -k")
+        return hints
 
     @property
     def accepted(self) -> bool:
-        passed = [r for r in self.checks if r.verdict == PASS]
-        return (bool(passed) and not self.failed and not self.abort and not self.safety_problems
-                and not self.safety_unverified)
+        return self.head == "CONFORMS"
+
+    @property
+    def head(self) -> str:
+        if self.no_answer and not self.failed:
+            return "NO ANSWER FROM THE DEVICE"
+        if self.failed or self.safety_problems:
+            return "DOES NOT CONFORM"
+        if self.stopped:
+            return "THE DEVICE STOPPED ANSWERING"
+        if self.abort and not self.interrupted:
+            return "NOT TESTED" if not self.passed else "COULD NOT GO ON"
+        if self.interrupted or self.missing or self.safety_unverified or not self.passed:
+            return "INCOMPLETE"
+        return "CONFORMS"
 
     @property
     def verdict_line(self) -> str:
-        n = {v: sum(r.verdict == v for r in self.checks) for v in (PASS, FAIL, ERROR, SKIP)}
-        if self.no_answer and not self.failed:
-            return (f"NO ANSWER FROM THE DEVICE: nothing could be checked ({n[PASS]} passed, "
-                    f"{self.not_run} not run)")
-        head = "CONFORMS" if self.accepted else "DOES NOT CONFORM"
-        if not self.failed and (self.abort or self.safety_problems or self.safety_unverified):
-            head = "INCOMPLETE" if n[PASS] else "NOT TESTED"
-        if self.stopped:
-            head = ("DOES NOT CONFORM, then THE DEVICE STOPPED ANSWERING" if self.failed
-                    else "THE DEVICE STOPPED ANSWERING: the run did not complete")
-        elif self.safety_unverified:
-            head += ", and THE DEVICE STOPPED ANSWERING during the restore"
-        parts = [f"{n[PASS]} passed", f"{n[FAIL]} failed"]
-        if n[ERROR]:
-            parts.append(f"{n[ERROR]} broke down (see the details)")
-        parts.append(f"{n[SKIP]} skipped")
-        if self.not_run:
-            parts.append(f"{self.not_run} not run (the run stopped early)")
-        return f"{head}: {', '.join(parts)} (of {len(self.checks) + self.not_run} checks of stated rules)"
+        head, n = self.head, len(self.passed)
+        if head == "NO ANSWER FROM THE DEVICE":
+            return f"{head}: nothing could be checked ({self.total} checks not run)"
+        counts = f"{n} passed, {len(self.failed)} failed"
+        if self.missing:
+            counts += f", {self.missing} not run"
+        counts += f" (of {self.total} checks of stated rules)"
+        if self.manual:
+            counts += f"; {len(self.manual)} manual step(s) for the operator (see the report)"
+        if head == "INCOMPLETE" and not self.interrupted and self.missing:
+            line = f"INCOMPLETE: {self.missing} of {self.total} checks not run"
+            hints = self.to_run_them
+            if hints:
+                line += f"; to run them: {', '.join(hints)}"
+            return line + f" ({counts})"
+        line = f"{head}: {counts}"
+        if self.interrupted:
+            line = (f"INCOMPLETE: {self.missing} of {self.total} checks not run (the run was interrupted "
+                    f"by {self.interrupted})") if head == "INCOMPLETE" else line + \
+                f" (the run was interrupted by {self.interrupted})"
+        elif head == "THE DEVICE STOPPED ANSWERING":
+            line = f"{head}: the run did not complete ({counts})"
+        elif head == "COULD NOT GO ON":
+            line += "; the run stopped early (see why above)"
+        if self.safety_unverified:
+            line += "; THE DEVICE COULD NOT BE RESTORED (see the safety section)"
+        return line
+
+    def exit_status(self, allow_incomplete: bool = False) -> int:
+        head = self.head
+        if self.interrupted:
+            return EXIT_INTERRUPTED
+        if head == "DOES NOT CONFORM":
+            return EXIT_FAILED
+        could_not = ("NO ANSWER FROM THE DEVICE", "THE DEVICE STOPPED ANSWERING", "COULD NOT GO ON",
+                     "NOT TESTED")
+        if head in could_not or self.safety_unverified:
+            return EXIT_COULD_NOT_GO_ON
+        if head == "INCOMPLETE":
+            return EXIT_OK if allow_incomplete else EXIT_INCOMPLETE
+        return EXIT_OK
+
+    # ---- summaries ----
+
+    @property
+    def groups(self) -> list[Group]:
+        """One line per rule group (check module), in run order."""
+        out: dict[str, Group] = {}
+        for r in self.checks:
+            g = out.setdefault(r.topic, Group(r.topic, GROUP_TITLES.get(r.topic, r.topic.replace("_", " "))))
+            if r.verdict == PASS:
+                g.passed += 1
+            elif r.verdict in (FAIL, ERROR):
+                g.failed += 1
+            elif r.verdict == MANUAL:
+                g.manual += 1
+            else:
+                g.skipped += 1
+        for topic in self.not_run_topics:
+            out.setdefault(topic, Group(topic, GROUP_TITLES.get(topic, topic.replace("_", " ")))).not_run += 1
+        return list(out.values())
+
+    @property
+    def timing_meaningful(self) -> bool:
+        """Turnaround statistics mean something only when answers took measurable time."""
+        medians = sorted(med for _h, _n, _lo, med, _hi in self.timing)
+        return bool(medians) and medians[len(medians) // 2] >= MEANINGFUL_TURNAROUND_S
+
+    @property
+    def skip_reasons(self) -> list[tuple[str, list[str]]]:
+        reasons: dict[str, list[str]] = {}
+        for r in self.all_skipped:
+            reasons.setdefault(r.message, []).append(r.check + (" (information)" if r.info else ""))
+        return list(reasons.items())
 
 
 def build(run: Any) -> Report:
@@ -146,21 +244,50 @@ def build(run: Any) -> Report:
         ("safe range", s.describe_range()),
         ("fresh device", "yes (power-on checks run first)" if s.fresh else "no (power-on checks skipped)"),
         ("random sequences", f"{s.examples} (seed {s.seed if s.seed is not None else 'derandomized'})"),
+        ("answer timeout", f"{s.timeout:g} s"),
         ("points the suite may write", _scratch_text(run)),
         ("kit", f"xac1-proto {__version__}"),
     ]
     checks = [r for r in run.results if not r.info]
     info_errors = [r for r in run.results if r.info and r.verdict in (FAIL, ERROR)]
     info_skipped = [r for r in run.results if r.info and r.verdict == SKIP]
-    infos_total = getattr(run, "total_info", 0)
-    run_checks = getattr(run, "total", 0) - infos_total
+    run_checks = run.total - run.total_info
+    safety, problems, warnings, unverified = _safety(run)
+    judged = {r.nodeid for r in run.results}
+    cut = "interrupted: the run stopped during this check"
+    not_run_checks = [(name + (" (information)" if info else ""),
+                       cut if nodeid in run.interrupted else "not run")
+                      for nodeid, name, info in run.collected if nodeid not in judged]
+    who = run.identity
+    unit = [(label, who[key]) for label, key in (("unit id", "unit_id"), ("operator", "operator"),
+                                                 ("station", "station"), ("note", "note")) if who.get(key)]
+    return Report(
+        port=s.port, version=(dut.version if dut is not None and dut.version else "unknown"),
+        date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=options, checks=checks,
+        infos=list(dut.infos) if dut is not None else [], info_errors=info_errors,
+        timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
+        abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
+        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
+        stopped=run.stopped, safety_unverified=unverified, not_run_checks=not_run_checks,
+        interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
+        command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        seed=s.seed, kit_version=__version__, junit=list(run.results),
+        not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected
+                        if nodeid not in judged and not info])
+
+
+def _topic(nodeid: str) -> str:
+    return Path(nodeid.split("::")[0]).stem.removeprefix("test_")
+
+
+def _safety(run: Any) -> tuple[list[str], list[str], list[str], list[str]]:
     safety: list[str] = []
     problems: list[str] = []
     if run.snapshot is not None:
         snap = run.snapshot
         safety.append(f"Before the first write the suite read all {len(snap.points)} points, the OUT ports "
                       f"({snap.outputs}) and the position ({snap.position_seen}).")
-    elif dut is None:
+    elif run.dut is None:
         safety.append("The device was not opened: nothing was sent to it.")
     else:
         safety.append("The run stopped before the safety snapshot: nothing was written to the device.")
@@ -171,22 +298,10 @@ def build(run: Any) -> Report:
         safety += rr.lines
         problems += rr.problems
         warnings += rr.warnings
-        unverified += getattr(rr, "unverified", [])
+        unverified += rr.unverified
     elif run.snapshot is not None:
         problems.append("the device was not restored (the run ended before the restore step)")
-    judged = {r.nodeid for r in run.results}
-    interrupted = getattr(run, "interrupted", [])
-    cut = "interrupted: the run stopped during this check"
-    not_run_checks = [(name + (" (information)" if info else ""), cut if nodeid in interrupted else "not run")
-                      for nodeid, name, info in getattr(run, "collected", []) if nodeid not in judged]
-    return Report(
-        port=s.port, version=(dut.version if dut is not None and dut.version else "unknown"),
-        date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=options, checks=checks,
-        infos=list(dut.infos) if dut is not None else [], info_errors=info_errors,
-        timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
-        abort=run.abort, safety_warnings=warnings, no_answer=getattr(run, "no_answer", False),
-        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
-        stopped=getattr(run, "stopped", False), safety_unverified=unverified, not_run_checks=not_run_checks)
+    return safety, problems, warnings, unverified
 
 
 def _scratch_text(run: Any) -> str:
@@ -203,73 +318,93 @@ def _scratch_text(run: Any) -> str:
 
 # ---- terminal ----
 
-def _cut(text: str, width: int) -> str:
-    return text if len(text) <= width else text[: max(width - 1, 0)] + "~"
-
-
-def _evidence_short(r: Result) -> str:
-    if not r.probes:
-        return "-" if r.verdict != SKIP else r.message
-    more = f" (+{len(r.probes) - 1} more)" if len(r.probes) > 1 else ""
-    return r.probes[0].show() + more
-
-
-def terminal_lines(rep: Report, width: int = 110) -> list[tuple[str, dict[str, bool]]]:
-    """The summary table and what follows it, as (line, markup) pairs for pytest's terminal writer."""
-    colour = {PASS: {"green": True}, FAIL: {"red": True, "bold": True}, ERROR: {"red": True},
-              SKIP: {"yellow": True}}
-    w_check = min(40, max((len(r.check) for r in rep.checks), default=10))
-    w_rule = max(30, (width - w_check - 9) * 2 // 5)
-    w_ev = max(20, width - w_check - w_rule - 9)
-    out: list[tuple[str, dict[str, bool]]] = [(f"device {rep.version} on {rep.port}  |  {rep.date}", {})]
-    ran = [r for r in rep.checks if r.verdict != SKIP]
-    if ran or not rep.abort:
-        out.append((f"{'check':<{w_check}} {'verdict':<6} {'rule':<{w_rule}} evidence (sent -> received)",
-                    {"bold": True}))
-    for r in rep.checks if ran or not rep.abort else []:
-        line = (f"{_cut(r.check, w_check):<{w_check}} {r.verdict:<6} {_cut(r.rule, w_rule):<{w_rule}} "
-                f"{_cut(_evidence_short(r), w_ev)}")
-        out.append((line, colour[r.verdict]))
+def terminal_lines(rep: Report) -> list[tuple[str, str]]:
+    """What the operator reads at the end of a run, as (line, style) pairs: style is '', 'good', 'bad',
+    'warn' or 'bold'. Nothing is cut: long lines wrap on the terminal."""
+    out: list[tuple[str, str]] = [(f"device {rep.version} on {rep.port}  |  {rep.date}", "bold")]
+    out += [(f"{k}: {v}", "") for k, v in rep.unit]
     for r in rep.failed:
-        out.append(("", {}))
-        out.append((f"{r.verdict} {r.check}: {r.rule}", colour[r.verdict]))
-        out.append((f"  {r.message}", {}))
+        out.append(("", ""))
+        out.append((f"{r.verdict} {r.check}: {r.rule}", "bad"))
+        out.append((f"  {r.message}", ""))
         for p in r.probes[:6]:
-            out.append((f"    {p.show()}", {}))
-    reasons: dict[str, list[str]] = {}
-    for r in rep.all_skipped:
-        reasons.setdefault(r.message, []).append(r.check + (" (information)" if r.info else ""))
-    if reasons:
-        out.append(("", {}))
-        out.append(("skipped checks (never a failure; to run them):", {"bold": True}))
-        for why, names in reasons.items():
-            out.append((f"  {why}", {"yellow": True}))
-            out.append((f"    {', '.join(names)}", {}))
+            out.append((f"    {p.show()}", ""))
+    tested = bool(rep.passed or rep.failed)  # an early stop tested nothing: no blocks about checks
+    if tested:
+        out.append(("", ""))
+        out.append(("by rule group:", "bold"))
+        for g in rep.groups:
+            parts = [f"{g.passed} passed"] + [f"{n} {w}" for n, w in ((g.failed, "failed"),
+                     (g.skipped + g.not_run, "not run"), (g.manual, "manual")) if n]
+            style = {FAIL: "bad", SKIP: "warn", PASS: "good"}[g.verdict]
+            out.append((f"  {g.verdict:<4}  {g.title}: {', '.join(parts)}", style))
+    if rep.skip_reasons and tested:
+        out.append(("", ""))
+        out.append(("checks not run (never a failure, but not an acceptance either); to run them:", "bold"))
+        for why, names in rep.skip_reasons:
+            out.append((f"  {why}", "warn"))
+            out.append((f"    {_grouped([(n, '') for n in names])}", ""))
+    for r in rep.manual:
+        out.append((f"manual step ({r.check}): {r.message}", "warn"))
     if rep.infos:
-        out.append(("", {}))
-        out.append(("information (docs/protocol.md is silent here; never a failure):", {"bold": True}))
-        for i in rep.infos:
-            out.append((f"  {i.topic}: {i.observed}", {}))
-    if rep.timing:
-        out.append(("", {}))
-        out.append(("answer turnaround (ms)   count     min  median     max", {"bold": True}))
-        for h, n, lo, med, hi in rep.timing:
-            out.append((f"  {h:<22} {n:>5} {lo * 1e3:>7.1f} {med * 1e3:>7.1f} {hi * 1e3:>7.1f}", {}))
-    out.append(("", {}))
-    for line in rep.safety:
-        out.append((f"safety: {line}", {}))
-    for line in rep.safety_warnings:
-        out.append((f"safety note: {line}", {"yellow": True}))
-    for line in rep.safety_problems:
-        out.append((f"safety PROBLEM: {line}", {"red": True, "bold": True}))
-    for line in rep.safety_unverified:
-        out.append((f"safety NOT RESTORED: {line}", {"red": True, "bold": True}))
-    if rep.not_run_checks:
-        out.append((f"not run: {_grouped(rep.not_run_checks)}", {"yellow": True}))
+        out.append(("", ""))
+        out.append(("information (docs/protocol.md is silent here; never a failure):", "bold"))
+        out += [(f"  {i.topic}: {i.observed}", "") for i in rep.infos]
+    if rep.timing and rep.timing_meaningful:
+        out.append(("", ""))
+        out.append(("answer turnaround (ms)   count     min  median     max", "bold"))
+        out += [(f"  {h:<22} {n:>5} {lo * 1e3:>7.1f} {med * 1e3:>7.1f} {hi * 1e3:>7.1f}", "")
+                for h, n, lo, med, hi in rep.timing]
+    out.append(("", ""))
+    out += [(f"safety: {line}", "") for line in rep.safety]
+    out += [(f"safety note: {line}", "warn") for line in rep.safety_warnings]
+    out += [(f"safety PROBLEM: {line}", "bad") for line in rep.safety_problems]
+    out += [(f"safety NOT RESTORED: {line}", "bad") for line in rep.safety_unverified]
+    if rep.not_run_checks and tested:
+        out.append((f"not run: {_grouped(rep.not_run_checks)}", "warn"))
     if rep.abort:
-        out.append((f"run stopped: {rep.abort}", {"red": True, "bold": True}))
-    out.append((rep.verdict_line, {"green" if rep.accepted else "red": True, "bold": True}))
+        out.append((f"run stopped: {rep.abort}", "bad"))
+    out.append((rep.verdict_line, "good" if rep.accepted else "bad"))
     return out
+
+
+def _grouped(checks: list[tuple[str, str]]) -> str:
+    """Check names, parametrized ones counted under their base name: ``malformed_answered (16)``."""
+    counts: dict[str, int] = {}
+    for name, why in checks:
+        key = name.split("::")[-1].split("[")[0] + (" (interrupted)" if why.startswith("interrupted") else "")
+        counts[key] = counts.get(key, 0) + 1
+    return ", ".join(k if c == 1 else f"{k} ({c})" for k, c in counts.items())
+
+
+# ---- files ----
+
+def _md(text: object) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _md_code(text: str) -> str:
+    text = text.replace("|", "\\|")
+    return f"`` {text} ``" if "`" in text else f"`{text}`"
+
+
+def render_page(rep: Report, kind: str) -> str:
+    """The report as ``html`` or ``md`` text."""
+    from xac1_proto.pages import environment, render
+
+    env = environment()
+    env.filters.setdefault("md", _md)
+    env.filters.setdefault("mdcode", _md_code)
+    return render(f"conformance.{kind}.j2", rep=rep, title="XA-C1 conformance report",
+                  limit=EVIDENCE_LIMIT, not_run_text=_not_run_count(rep))
+
+
+def html_page(rep: Report) -> str:
+    return render_page(rep, "html")
+
+
+def markdown(rep: Report) -> str:
+    return render_page(rep, "md")
 
 
 def _not_run_count(rep: Report) -> str:
@@ -278,181 +413,17 @@ def _not_run_count(rep: Report) -> str:
     return rules + (f" and {info} information record(s)" if info else "")
 
 
-def _grouped(checks: list[tuple[str, str]]) -> str:
-    """Check names, parametrized ones counted under their base name: ``malformed_answered (16)``."""
-    counts: dict[str, int] = {}
-    for name, why in checks:
-        key = name.split("[")[0] + (" (interrupted)" if why.startswith("interrupted") else "")
-        counts[key] = counts.get(key, 0) + 1
-    return ", ".join(k if c == 1 else f"{k} ({c})" for k, c in counts.items())
-
-
-# ---- files ----
-
-def _md_code(text: str) -> str:
-    text = text.replace("|", "\\|")
-    return f"`` {text} ``" if "`" in text else f"`{text}`"
-
-
-def _md_cell(text: str) -> str:
-    return text.replace("|", "\\|").replace("\n", " ")
-
-
-def markdown(rep: Report) -> str:
-    o: list[str] = ["# XA-C1 conformance report", "", f"**Verdict: {rep.verdict_line}**", ""]
-    o += ["This report says whether the controller follows every rule the XA-C1 protocol states "
-          "(docs/protocol.md, a restatement of the vendor's text). Each check below names the rule, the "
-          "verdict and the bytes the test sent and received (`\\r` is CR, `\\n` is LF). Skipped checks "
-          "could not be done on this run (the reason says what to pass); they do not count against the "
-          "device. The information section shows what the device does where the protocol leaves the choice "
-          "open: it never fails a device.", ""]
-    o += ["## Device and run", "", "| | |", "|---|---|", f"| firmware version | {rep.version} |",
-          f"| date | {rep.date} |"]
-    o += [f"| {k} | {_md_cell(v)} |" for k, v in rep.options]
-    if rep.abort:
-        o += ["", f"**The run stopped early:** {_md_cell(rep.abort)}"]
-    o += ["", "## Verdicts", "",
-          "| check | rule | docs/protocol.md | verdict | evidence (sent -> received) |",
-          "|---|---|---|---|---|"]
-    for r in rep.checks:
-        ev = "<br>".join(_md_code(p.show()) for p in r.probes[:2]) or _md_cell(r.message or "-")
-        if len(r.probes) > 2:
-            ev += f"<br>(+{len(r.probes) - 2} more)"
-        o.append(f"| {_md_cell(r.check)} | {_md_cell(r.rule)} | {_md_cell(r.section)} | **{r.verdict}** "
-                 f"| {ev} |")
-    if rep.failed:
-        o += ["", "## Failures in detail", ""]
-        for r in rep.failed:
-            cited = r.section and "docs/protocol.md" not in r.rule
-            where = f" (docs/protocol.md {r.section})" if cited else ""
-            o += [f"### {r.verdict}: {_md_cell(r.check)}", "", f"Rule: {r.rule}{where}", "",
-                  f"What happened: {r.message}", ""]
-            o += ["Exchanges:", ""] + [f"- {_md_code(p.show())}" for p in r.probes[:EVIDENCE_LIMIT]]
-            if len(r.probes) > EVIDENCE_LIMIT:
-                o.append(f"- ... {len(r.probes) - EVIDENCE_LIMIT} more")
-            o.append("")
-    if rep.all_skipped:
-        o += ["", "## Skipped checks", "", "Not a failure: the run could not do what these need. "
-              "The reason says what to pass to run them.", "", "| check | why |", "|---|---|"]
-        o += [f"| {_md_cell(r.check)}{' (information)' if r.info else ''} | {_md_cell(r.message)} |"
-              for r in rep.all_skipped]
-    if rep.not_run_checks:
-        o += ["", "## Checks not run", "",
-              f"The run did not complete (see above): these {_not_run_count(rep)} have no verdict.", "",
-              "| check | |", "|---|---|"]
-        o += [f"| {_md_cell(name)} | {_md_cell(why)} |" for name, why in rep.not_run_checks]
-    elif rep.not_run:
-        o += ["", f"**{rep.not_run} check(s) were not run:** the run stopped early (see above)."]
-    o += ["", "## Information (the protocol is silent here; never a failure)", ""]
-    if rep.infos:
-        o += ["| topic | docs/protocol.md | what the device did | exchanges |", "|---|---|---|---|"]
-        for i in rep.infos:
-            ev = "<br>".join(_md_code(p.show()) for p in i.probes[:3]) or "-"
-            o.append(f"| {_md_cell(i.topic)} | {_md_cell(i.section)} | {_md_cell(i.observed)} | {ev} |")
-    else:
-        o.append("Nothing recorded.")
-    for r in rep.info_errors:
-        o.append(f"\nCould not record {r.check}: {_md_cell(r.message)}")
-    o += ["", "## Answer turnaround", "",
-          "Time from the command's last byte to the answer's first byte. Moves (0MP, 0MV) include the "
-          "move itself.", "", "| command | answers | min (ms) | median (ms) | max (ms) |",
-          "|---|---|---|---|---|"]
-    o += [f"| {h} | {n} | {lo * 1e3:.1f} | {med * 1e3:.1f} | {hi * 1e3:.1f} |"
-          for h, n, lo, med, hi in rep.timing] or ["| (no answer was received) | 0 | | | |"]
-    o += ["", "## Safety", ""] + [f"- {line}" for line in rep.safety]
-    o += [f"- Note: {line}" for line in rep.safety_warnings]
-    o += [f"- **PROBLEM:** {line}" for line in rep.safety_problems]
-    o += [f"- **NOT RESTORED:** {line}" for line in rep.safety_unverified]
-    return "\n".join(o) + "\n"
-
-
-_CSS = ("body{font-family:sans-serif;max-width:70em;margin:2em auto;padding:0 1em;color:#222}"
-        "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:.25em .5em;"
-        "vertical-align:top;text-align:left}code{font-size:.9em;background:#f3f3f3}"
-        ".PASS{color:#070}.FAIL,.ERROR{color:#b00;font-weight:bold}.SKIP{color:#a60}"
-        ".verdict{font-size:1.2em;font-weight:bold;padding:.5em;border:2px solid}")
-
-
-def _h(text: object) -> str:
-    return html.escape(str(text))
-
-
-def _hcode(p: Probe) -> str:
-    return f"<code>{_h(p.show())}</code>"
-
-
-def html_page(rep: Report) -> str:
-    o = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>XA-C1 conformance report</title>"
-         f"<style>{_CSS}</style></head><body><h1>XA-C1 conformance report</h1>",
-         f"<p class='verdict {'PASS' if rep.accepted else 'FAIL'}'>{_h(rep.verdict_line)}</p>",
-         "<p>This report says whether the controller follows every rule the XA-C1 protocol states. Each "
-         "check names the rule, the verdict and the bytes sent and received (<code>\\r</code> is CR, "
-         "<code>\\n</code> is LF). Skipped checks could not be done on this run (the reason says what to "
-         "pass) and do not count against the device. The information section shows what the device does "
-         "where the protocol leaves the choice open: it never fails a device.</p>",
-         "<h2>Device and run</h2><table>",
-         f"<tr><th>firmware version</th><td>{_h(rep.version)}</td></tr>",
-         f"<tr><th>date</th><td>{_h(rep.date)}</td></tr>"]
-    o += [f"<tr><th>{_h(k)}</th><td>{_h(v)}</td></tr>" for k, v in rep.options]
-    o.append("</table>")
-    if rep.abort:
-        o.append(f"<p class='FAIL'>The run stopped early: {_h(rep.abort)}</p>")
-    o.append("<h2>Verdicts</h2><table><tr><th>check</th><th>rule</th><th>docs/protocol.md</th><th>verdict</th>"
-             "<th>evidence (sent -&gt; received)</th></tr>")
-    for r in rep.checks:
-        ev = "<br>".join(_hcode(p) for p in r.probes[:EVIDENCE_LIMIT])
-        if r.message:
-            ev = f"<div>{_h(r.message)}</div>" + ev
-        if len(r.probes) > EVIDENCE_LIMIT:
-            ev += f"<br>... {len(r.probes) - EVIDENCE_LIMIT} more"
-        o.append(f"<tr><td>{_h(r.check)}</td><td>{_h(r.rule)}</td><td>{_h(r.section)}</td>"
-                 f"<td class='{r.verdict}'>{r.verdict}</td><td>{ev or '-'}</td></tr>")
-    o.append("</table>")
-    if rep.all_skipped:
-        o.append("<h2>Skipped checks</h2><p>Not a failure: the run could not do what these need. "
-                 "The reason says what to pass to run them.</p><table><tr><th>check</th><th>why</th></tr>")
-        o += [f"<tr><td>{_h(r.check)}{' (information)' if r.info else ''}</td><td>{_h(r.message)}</td></tr>"
-              for r in rep.all_skipped]
-        o.append("</table>")
-    if rep.not_run_checks:
-        o.append(f"<h2>Checks not run</h2><p class='FAIL'>The run did not complete: these "
-                 f"{_not_run_count(rep)} have no verdict.</p><table>")
-        o += [f"<tr><td>{_h(name)}</td><td>{_h(why)}</td></tr>" for name, why in rep.not_run_checks]
-        o.append("</table>")
-    elif rep.not_run:
-        o.append(f"<p class='FAIL'>{rep.not_run} check(s) were not run: the run stopped early.</p>")
-    o.append("<h2>Information (the protocol is silent here; never a failure)</h2>")
-    if rep.infos:
-        o.append("<table><tr><th>topic</th><th>docs/protocol.md</th><th>what the device did</th>"
-                 "<th>exchanges</th></tr>")
-        for i in rep.infos:
-            o.append(f"<tr><td>{_h(i.topic)}</td><td>{_h(i.section)}</td><td>{_h(i.observed)}</td>"
-                     f"<td>{'<br>'.join(_hcode(p) for p in i.probes[:3]) or '-'}</td></tr>")
-        o.append("</table>")
-    else:
-        o.append("<p>Nothing recorded.</p>")
-    for r in rep.info_errors:
-        o.append(f"<p>Could not record {_h(r.check)}: {_h(r.message)}</p>")
-    o.append("<h2>Answer turnaround</h2><p>From the command's last byte to the answer's first byte; moves "
-             "include the move itself.</p><table><tr><th>command</th><th>answers</th><th>min (ms)</th>"
-             "<th>median (ms)</th><th>max (ms)</th></tr>")
-    o += [f"<tr><td>{_h(h)}</td><td>{n}</td><td>{lo * 1e3:.1f}</td><td>{med * 1e3:.1f}</td>"
-          f"<td>{hi * 1e3:.1f}</td></tr>" for h, n, lo, med, hi in rep.timing] or [
-        "<tr><td colspan='5'>no answer was received</td></tr>"]
-    o.append("</table><h2>Safety</h2><ul>")
-    o += [f"<li>{_h(line)}</li>" for line in rep.safety]
-    o += [f"<li class='SKIP'>Note: {_h(line)}</li>" for line in rep.safety_warnings]
-    o += [f"<li class='FAIL'>PROBLEM: {_h(line)}</li>" for line in rep.safety_problems]
-    o += [f"<li class='FAIL'>NOT RESTORED: {_h(line)}</li>" for line in rep.safety_unverified]
-    o.append("</ul></body></html>")
-    return "\n".join(o) + "\n"
+def kind_of(path: Path) -> str | None:
+    """``html``, ``md`` or ``xml`` by the file's suffix (None: not a report name)."""
+    return {".html": "html", ".htm": "html", ".md": "md", ".markdown": "md", ".xml": "xml"}.get(
+        path.suffix.lower())
 
 
 def write_file(path: Path, rep: Report) -> None:
     """Markdown or HTML by the file's suffix."""
-    text = html_page(rep) if path.suffix.lower() in (".html", ".htm") else markdown(rep)
+    text = html_page(rep) if kind_of(path) == "html" else markdown(rep)
     path.write_text(text, encoding="utf-8")
 
 
-__all__ = ["Report", "Result", "build", "html_page", "markdown", "result_from", "terminal_lines", "wire",
+__all__ = ["Report", "Result", "build", "html_page", "markdown", "result_from", "terminal_lines",
            "write_file"]

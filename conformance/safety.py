@@ -36,7 +36,7 @@ from xac1_proto.frames import (
     WritePoint,
 )
 
-from .dut import DeviceAbort, DeviceUnderTest, MotionRefused, StoppedAnswering
+from .dut import DeviceAbort, DeviceUnderTest, MotionRefused, PortLost, StoppedAnswering
 from .evidence import Probe, describe_answer
 
 POINTS = range(spec.FIELDS["n"].command_range[0], spec.FIELDS["n"].command_range[1] + 1)
@@ -98,18 +98,35 @@ class RestoreReport:
 
 def _ask(dut: DeviceUnderTest, frame: Frame) -> Probe:
     """Send ``frame``; after silence, check the device is there (``StoppedAnswering`` if not) and ask
-    once more, so one lost answer neither stops the snapshot nor the restore."""
+    once more; after an answer of another command or a damaged one (a late answer, a corrupted byte),
+    let the line go quiet and ask once more. One lost or spoiled answer stops neither the snapshot nor
+    the restore (every command sent here is read-only or writes back the same values)."""
     p = dut.send(frame)
     if p.silent:
         dut.settle()
+        return dut.send(frame)
+    if p.alarm is None and (p.frame is None or p.frame.header != frame.header or p.errors):
+        dut.drain(min(dut.settings.timeout, 0.3))
         p = dut.send(frame)
     return p
+
+
+def _late(dut: DeviceUnderTest, p: Probe) -> str:
+    """A hint when an answer may have come late: none in time, partial, or bytes that arrived before a
+    later command (a late answer)."""
+    late = p.partial or p.exchange.stale or any(q.exchange.stale for q in dut.log[-6:])
+    if late:
+        return (f"; answers come later than {dut.settings.timeout:g} s: a slow device needs a longer wait, "
+                f"e.g. {dut.settings.flag('timeout')} {2 * dut.settings.timeout:g}")
+    if p.timed_out:
+        return f"; if the device is slow to answer, try a longer wait: {dut.settings.flag('timeout')} S"
+    return ""
 
 
 def _read_point(dut: DeviceUnderTest, n: int) -> PointData:
     p = _ask(dut, ReadPoint(n=n))
     if not isinstance(p.frame, ReadPointAnswer):  # data that decodes is kept, even from a flawed answer
-        raise DeviceAbort(f"cannot read point {n:X}: {describe_answer(p)} ({p.show()})")
+        raise DeviceAbort(f"cannot read point {n:X}: {describe_answer(p)} ({p.show()}){_late(dut, p)}")
     f = p.frame
     return PointData(f.v, f.a, f.o, f.pos)
 
@@ -117,7 +134,7 @@ def _read_point(dut: DeviceUnderTest, n: int) -> PointData:
 def _read_outputs(dut: DeviceUnderTest) -> int:
     p = _ask(dut, ReadOutputs())
     if not isinstance(p.frame, ReadOutputsAnswer):
-        raise DeviceAbort(f"cannot read the OUT ports: {describe_answer(p)} ({p.show()})")
+        raise DeviceAbort(f"cannot read the OUT ports: {describe_answer(p)} ({p.show()}){_late(dut, p)}")
     return p.frame.o
 
 
@@ -139,6 +156,7 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
     """Write back what changed and verify it by reading again; never raises for device trouble."""
     out = RestoreReport()
     try:
+        dut.drain(min(dut.settings.timeout, 0.3))  # an interrupted probe's answer may still be coming
         dut.settle()
         changed = 0
         for n in POINTS:
@@ -169,7 +187,7 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
             out.lines.append(f"OUT ports unchanged ({snap.outputs})")
         _restore_position(dut, snap, out)
         _mode(dut, out)
-    except StoppedAnswering as exc:
+    except (StoppedAnswering, PortLost) as exc:
         out.unverified.append(f"the restore could not be done or verified: {exc}")
         out.unverified += _changes_sent(dut, snap)
     except DeviceAbort as exc:

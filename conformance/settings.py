@@ -18,6 +18,8 @@ DEFAULT_PORT = SIMULATOR_SCHEME + "?time_scale=0"
 # Where the suite moves the simulator when the user gives no safe range.
 SIMULATOR_SAFE_RANGE = (0, 0xFFFF)
 DEFAULT_SEED = 0
+# The in-process simulator answers at once: silence there (a deviation) is known after a short wait.
+SIMULATOR_TIMEOUT_S = 0.2
 
 
 class SettingsError(ValueError):
@@ -91,7 +93,7 @@ class Settings:
     safe_range: tuple[int, int] | None
     seed: int | None  # None: derandomized (the same sequences every run)
     examples: int
-    timeout: float = 0.5  # turnaround timeout of one answer, seconds
+    timeout: float = spec.NO_ANSWER_TIMEOUT_S  # turnaround timeout of one answer, seconds
     time_scale: float = 1.0  # how fast moves run compared with the speed table (the simulator's option)
     scratch_points: tuple[int, ...] = ()  # points the user lets the suite overwrite, even if never written
     restore_mode0: bool = False  # send 0CM0 as the very last command (external start enabled again)
@@ -117,7 +119,8 @@ class Settings:
             raise SettingsError(f"--xac1-timeout: expected seconds > 0, got {timeout}")
         return cls(port=port, simulator=sim, motion=motion, fresh=fresh or sim, safe_range=rng,
                    seed=DEFAULT_SEED if seed is None else seed, examples=examples or (30 if sim else 10),
-                   timeout=timeout or (0.2 if sim else 0.5), time_scale=_sim_time_scale(port) if sim else 1.0,
+                   timeout=timeout or (SIMULATOR_TIMEOUT_S if sim else spec.NO_ANSWER_TIMEOUT_S),
+                   time_scale=_sim_time_scale(port) if sim else 1.0,
                    scratch_points=parse_points(scratch_points) if scratch_points else (),
                    restore_mode0=restore_mode0, cli=cli)
 

@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from conftest import conformance, failed_checks, read_table, skipped_checks
+from conftest import conformance, read_table
 
 from conformance.evidence import Probe
 from conformance.settings import SettingsError, parse_points
@@ -76,7 +76,9 @@ def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     report = tmp_path / "r.md"
     r = conformance(["--port", url, *MOTION, "--examples", "5", "--report", str(report)], tmp_path)
     after = read_table(url)
-    assert r.returncode == 0, r.stdout[-4000:]
+    assert r.returncode == 4, r.stdout[-4000:]  # INCOMPLETE: the checks that need more points did not run
+    last = r.stdout.splitlines()[-1]
+    assert "INCOMPLETE: 4 of 97 checks not run; to run them: --fresh, --scratch-points 1,2" in last, last
     assert after == before
     assert {n for n, (v, a, _o, _p) in after.points.items() if v and a} == set(HELD)
     assert written_points(log) == set(HELD)  # and nothing else was ever written, even for a moment
@@ -84,7 +86,7 @@ def test_writes_only_points_it_can_restore(sim_process, tmp_path):
     for where in (r.stdout, text):
         assert "needs 3 points the suite may overwrite" in where
         assert "--scratch-points 1" in where
-    assert "| store_current | needs 3 points" in text
+    assert "| store_current | needs 3 points" in text and "**Verdict: INCOMPLETE: 4 of 97" in text
     assert "point 3 restored" in text and "point 7 restored" in text
     saved = json.loads(state.read_text())["points"]
     assert {int(k, 16): (p["v"], p["a"], p["o"], p["pos"]) for k, p in saved.items()} == HELD
@@ -97,13 +99,13 @@ def test_scratch_points_lets_the_checks_run(sim_process, tmp_path):
     url, _state, log = sim_process
     before = read_table(url)
     report = tmp_path / "r.md"
-    junit = tmp_path / "junit.xml"
     r = conformance(["--port", url, *MOTION, "--scratch-points", "1,2", "--report", str(report),
-                     "-k", "store_current or point_move_carries_n or read_back", "--junitxml", str(junit)],
+                     "-k", "store_current or point_move_carries_n or read_back", "--allow-incomplete"],
                     tmp_path)
     after = read_table(url)
-    assert r.returncode == 0, r.stdout[-4000:]
-    assert skipped_checks(junit) == {} and not failed_checks(junit)
+    assert r.returncode == 0, r.stdout[-4000:]  # only -k left checks out: deliberately partial
+    last = r.stdout.splitlines()[-1]
+    assert "INCOMPLETE: 88 of 98 checks not run; to run them: no -k (10 passed, 0 failed" in last, last
     text = report.read_text()
     assert "| store_current |" in text and "| point_move_carries_n |" in text and "SKIP" not in text
     assert written_points(log) <= {1, 2, *HELD} and {1, 2} <= written_points(log)
@@ -135,8 +137,8 @@ def test_position_restored(tmp_path):
             c.home()
             c.move_direct(0x3C, 3, start)
         report = tmp_path / "r.md"
-        r = conformance(["--port", sim.url, *MOTION, "--report", str(report), "-k", "reaches_target"],
-                        tmp_path)
+        r = conformance(["--port", sim.url, *MOTION, "--report", str(report), "-k", "reaches_target",
+                         "--allow-incomplete"], tmp_path)
         with Client(sim.url, timeout=2) as c:
             now = c.read_current().pos
     assert r.returncode == 0, r.stdout[-4000:]
@@ -152,8 +154,8 @@ def test_position_not_known_is_reported(tmp_path):
     position was not restored and why."""
     with serve_tcp(model=_held_model()) as sim:
         report = tmp_path / "r.md"
-        r = conformance(["--port", sim.url, *MOTION, "--report", str(report), "-k", "direct_move_reaches"],
-                        tmp_path)
+        r = conformance(["--port", sim.url, *MOTION, "--report", str(report), "-k", "direct_move_reaches",
+                         "--allow-incomplete"], tmp_path)
     assert r.returncode == 0, r.stdout[-4000:]
     text = report.read_text()
     assert "axis position not restored: it was not known at the start (0RC answered FFFFFF" in text
@@ -164,7 +166,8 @@ def test_position_not_known_is_reported(tmp_path):
 def test_restore_mode0_sends_0cm0_last(tmp_path):
     """--restore-mode0 sends 0CM0 as the run's last command: the controller ends in mode 0."""
     with serve_tcp(model=_held_model()) as sim:
-        r = conformance(["--port", sim.url, "--restore-mode0", "-k", "version_format"], tmp_path)
+        r = conformance(["--port", sim.url, "--restore-mode0", "-k", "version_format", "--allow-incomplete"],
+                        tmp_path)
         with sim.lock:
             mode = sim.model.status()["mode"]
     assert r.returncode == 0, r.stdout[-4000:]
@@ -222,5 +225,5 @@ def test_probe_holds_the_exchange():
     p = Probe("t", ex)
     assert (p.sent, p.raw, p.latency, p.junk, p.errors) == (ex.sent, ex.raw, 0.01, b"", [])
     q = Probe.silence("t", ex.sent, b"0R")
-    assert q.timed_out and q.raw == b"" and q.frame is None and "partial: 0R" in q.show()
+    assert q.timed_out and q.raw == b"" and q.frame is None and "partial: '0R'" in q.show()
     assert Probe("t", ex) != p  # two identical exchanges are two pieces of evidence

@@ -11,7 +11,9 @@ import os
 import signal
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import pytest
 from conftest import RUN_TIMEOUT, conformance, failed_checks, read_table, skipped_checks, wait_until
@@ -48,29 +50,43 @@ OTHER_CHOICES = SimConfig(
 )
 
 
+def failure_messages(junit: Path) -> dict[str, str]:
+    root = ET.parse(junit).getroot()
+    return {case.get("name", ""): (case.find("failure") if case.find("failure") is not None
+                                   else case.find("error")).get("message", "")
+            for case in root.iter("testcase")
+            if case.find("failure") is not None or case.find("error") is not None}
+
+
 def test_passes_the_simulator_with_report(tmp_path):
     """`xac1 conformance` passes the built-in simulator (exit 0), writes JUnit XML and a Markdown report
     with the verdicts, evidence bytes, information section and timing table."""
     report, junit = tmp_path / "acceptance.md", tmp_path / "junit.xml"
     r = conformance(["--report", str(report), "--junitxml", str(junit)], tmp_path)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-2000:]
-    assert "CONFORMS" in r.stdout and "evidence (sent -> received)" in r.stdout
+    assert "CONFORMS: 98 passed, 0 failed (of 98 checks of stated rules)" in r.stdout.splitlines()[-1]
+    assert "by rule group:" in r.stdout
     text = report.read_text()
-    for part in ("Verdict: CONFORMS", "firmware version | 100", "xac1sim://", "`0RV\\r\\n -> 0RV100\\r\\n`",
-                 "## Information", "silent item 1", "## Answer turnaround", "| 0RP |", "## Safety"):
+    for part in ("Verdict: CONFORMS", "firmware version | 100", "xac1sim://",
+                 "`'0RV' CR LF -> '0RV100' CR LF`", "## Information", "silent item 1", "## Safety",
+                 "## Summary by rule group"):
         assert part in text, part
+    assert "## Answer turnaround" not in text  # the in-process simulator answers in no time: no statistics
     assert not failed_checks(junit)
 
 
 def test_html_report_and_skips_are_explained(tmp_path):
     """An HTML report by suffix; checks a real device does not allow (motion, power-on) are listed as
-    skipped with the reason, and a run with only skips and passes exits 0."""
+    not run with the reason; a run with only skips and passes is INCOMPLETE (exit 4), naming the options."""
     report = tmp_path / "r.html"
     with serve_tcp(SimConfig(time_scale=0)) as sim:
         r = conformance(["--port", sim.url, "--report", str(report), "-k", "echo or power_on or version"],
                         tmp_path)
         status = sim.model.status()
-    assert r.returncode == 0, r.stdout[-3000:]
+    assert r.returncode == 4, r.stdout[-3000:]
+    last = r.stdout.splitlines()[-1]
+    assert "INCOMPLETE:" in last, last
+    assert "to run them: --fresh, --scratch-points 1,2, --allow-motion, --safe-range LO:HI, no -k" in last
     page = report.read_text()
     assert page.startswith("<!DOCTYPE html>") and "SKIP" in page and "pass --allow-motion" in page
     assert "pass --fresh" in page and "--xac1-" not in page  # the options of the command that was run
@@ -82,11 +98,12 @@ def deviation_runs(tmp_path_factory):
     """All deviation runs at once (two at a time), each with its JUnit XML."""
     base = tmp_path_factory.mktemp("deviations")
 
-    def one(name: str) -> tuple[int, set[str], str]:
+    def one(name: str) -> tuple[int, set[str], str, dict[str, str]]:
         junit = base / f"{name}.xml"
-        r = conformance(["--port", f"xac1sim://?time_scale=0&deviation={name}", "--junitxml", str(junit),
+        r = conformance(["--port", f"xac1sim://?time_scale=0&deviation={name}", "--junit", str(junit),
                          *FAST], base)
-        return r.returncode, failed_checks(junit) if junit.exists() else set(), r.stdout[-2000:]
+        return (r.returncode, failed_checks(junit) if junit.exists() else set(), r.stdout[-2000:],
+                failure_messages(junit) if junit.exists() else {})
 
     with ThreadPoolExecutor(max_workers=2) as pool:
         return dict(zip(EXPECTED, pool.map(one, EXPECTED), strict=True))
@@ -101,10 +118,23 @@ def test_every_deviation_is_listed():
 @pytest.mark.parametrize("deviation", sorted(EXPECTED))
 def test_deviation_fails_the_right_check(deviation_runs, deviation):
     """With one stated rule broken ({deviation}), the suite exits 1 and the check of that rule fails."""
-    code, failed, out = deviation_runs[deviation]
+    code, failed, out, _messages = deviation_runs[deviation]
     assert code == 1, out
     want = EXPECTED[deviation]
     assert any(name == want or name.startswith(want + "[") for name in failed), (want, sorted(failed), out)
+
+
+@pytest.mark.parametrize("deviation", sorted(EXPECTED))
+def test_deviation_failure_says_expected_and_received(deviation_runs, deviation):
+    """The failure of the check that catches {deviation} says what was expected and what came back, in
+    the project's escaped byte form (never a Python byte repr)."""
+    _code, _failed, out, messages = deviation_runs[deviation]
+    want = EXPECTED[deviation]
+    mine = {name: m for name, m in messages.items() if name == want or name.startswith(want + "[")}
+    assert mine, (want, sorted(messages), out)
+    for name, message in mine.items():
+        assert "expected" in message and "received" in message, (name, message)
+        assert "b'" not in message and 'b"' not in message, (name, message)
 
 
 def test_other_silent_choices_still_pass_over_tcp(tmp_path):

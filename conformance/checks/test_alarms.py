@@ -11,7 +11,9 @@ import pytest
 
 from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, reset_ok
+from conformance.results import ManualStep
 from xac1_proto import spec
+from xac1_proto.codec import show_bytes
 from xac1_proto.frames import AlarmReset, ReadVersion
 
 MALFORMED = b"0XY" + spec.TERMINATOR
@@ -21,7 +23,8 @@ LATCHED_KINDS = [h for h in COMMAND_HEADERS if h != spec.RESET_HEADER]
 def _latch(dut):
     p = dut.probe(MALFORMED)
     expect(not p.timed_out, "no answer (silence) to a malformed command", p)
-    expect(p.alarm is not None, f"a malformed command got {describe_answer(p)}, expected an alarm answer", p)
+    expect(p.alarm is not None, f"a malformed command (0XY): expected an alarm answer 0%%Ec, received "
+                                f"{describe_answer(p)}", p)
     return p
 
 
@@ -36,11 +39,13 @@ def test_alarm_latched(xac1_dut, xac1_kit, header):
     command = xac1_kit.command(header)
     first = _latch(xac1_dut)
     p = xac1_dut.send(command)
-    expect(p.raw == first.raw, f"with alarm {first.alarm.code:02X} latched, {header} got "
-                               f"{describe_answer(p)} instead of the alarm answer", first, p)
+    expect(p.raw == first.raw, f"with alarm {first.alarm.code:02X} latched, {header}: expected the alarm "
+                               f"answer {show_bytes(first.raw)} again, received {describe_answer(p)}",
+           first, p)
     again = xac1_dut.send(ReadVersion())
     expect(again.raw == first.raw,
-           f"the alarm was not latched: a second command got {describe_answer(again)}", first, p, again)
+           f"the alarm was not latched: a second command (0RV): expected the alarm answer "
+           f"{show_bytes(first.raw)}, received {describe_answer(again)}", first, p, again)
 
 
 def test_reset_clears_alarm(xac1_dut):
@@ -48,7 +53,7 @@ def test_reset_clears_alarm(xac1_dut):
     "Behaviour the vendor text states": alarm reset)."""
     first = _latch(xac1_dut)
     r = xac1_dut.send(AlarmReset())
-    expect(reset_ok(r), f"0%C answered {describe_answer(r)}, expected 0%C00",
+    expect(reset_ok(r), f"0%C: expected the reset answer 0%C00, received {describe_answer(r)}",
            first, r)
     n = xac1_dut.send(ReadVersion())
     expect(n.answered, f"after 0%C00 the next command got {describe_answer(n)}, not its normal answer",
@@ -68,8 +73,9 @@ def test_estop_survives_reset(xac1_dut):
     the vendor text states": the reset clears every alarm except emergency stop)."""
     sim = getattr(xac1_dut.client.port, "model", None)
     if sim is None or not hasattr(sim, "set_estop"):
-        pytest.skip("emergency stop comes from the device's stop input, not the line: check by hand (press "
-                    "the stop, send 0%C, expect 0%%0E)")
+        raise ManualStep("press the emergency stop, then send 0%C and 0RV (e.g. with xac1 console)",
+                         "0%C answers 0%%0E and 0RV answers 0%%0E too: the stop stays latched until the "
+                         "stop input is released")
     sim.set_estop(True)
     try:
         first = xac1_dut.send(ReadVersion())
@@ -79,7 +85,8 @@ def test_estop_survives_reset(xac1_dut):
         after = xac1_dut.send(ReadVersion())
         xac1_dut.info("0%C during emergency stop", "silent item 3", describe_answer(r), r)
         expect(after.alarm is not None and after.alarm.code == spec.ALARM_ESTOP,
-               f"0%C cleared the emergency stop: the next command got {describe_answer(after)}",
+               f"0%C cleared the emergency stop: the next command (0RV): expected the alarm answer 0%%0E, "
+               f"received {describe_answer(after)}",
                first, r, after)
     finally:
         sim.set_estop(False)

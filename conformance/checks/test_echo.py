@@ -4,14 +4,29 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
+from conformance.evidence import describe_answer, differences, expect
 from conformance.kit import reset_ok
+from xac1_proto import spec
+from xac1_proto.codec import diagnose, show_bytes
 from xac1_proto.frames import AlarmReset, SwitchMode, WriteOutputs, WritePoint
 
 
 def _echoed(p, what):
     expect(not p.timed_out, f"{what}: no answer (silence)", p)
-    expect(p.echoes(), f"{what}: the answer is not the echo of the command ({describe_answer(p)})", p)
+    expect(p.echoes(), f"{what}: expected the echo {show_bytes(p.sent)}, received {describe_answer(p)}"
+           + (f"; {diff}" if (diff := _echo_difference(p)) else ""), p)
+
+
+def _echo_difference(p):
+    command, _ = diagnose(p.sent, spec.COMMAND)
+    if command is None or p.frame is None or p.frame.header != command.header:
+        return ""
+    return differences(_named(command), _named(p.frame))
+
+
+def _named(frame):
+    return {spec.FIELDS[k].label: spec.FIELDS[k].show(v) if not spec.FIELDS[k].text else v
+            for k, v in frame.fields().items()}
 
 
 @pytest.mark.parametrize("v,a,o", [(1, 3, 0), (9, 1, 3)], ids=["V1A3O0", "V9A1O3"])
@@ -47,4 +62,4 @@ def test_direct_move_echo(xac1_dut, xac1_kit):
 def test_reset_answer_without_alarm(xac1_dut):
     """0%C answers 0%C00, also when no alarm is latched (docs/protocol.md "Frames", alarm reset)."""
     p = xac1_dut.send(AlarmReset())
-    expect(reset_ok(p), f"0%C answered {describe_answer(p)}, expected 0%C00", p)
+    expect(reset_ok(p), f"0%C: expected the reset answer 0%C00, received {describe_answer(p)}", p)

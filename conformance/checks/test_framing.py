@@ -12,6 +12,7 @@ import pytest
 from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, TWO_ANSWERS, two_offset
 from xac1_proto import spec
+from xac1_proto.codec import show_bytes
 from xac1_proto.frames import StoreCurrent
 
 NEEDS_MOTION = {*MOTION_HEADERS, StoreCurrent.HEADER}  # 0WC needs a homed axis
@@ -31,21 +32,25 @@ def test_answer_length(xac1_dut, xac1_kit, header):
     """The answer to {id} has the spec's byte count, CR LF included (docs/protocol.md "Frames")."""
     p = _normal_sample(xac1_kit, header)
     want = spec.SPECS[(header, spec.ANSWER)].length
-    expect(len(p.raw) == want, f"{header} answer is {len(p.raw)} bytes, the spec says {want}", p)
+    expect(len(p.raw) == want, f"{header} answer: expected {want} bytes (CR LF included), received "
+                               f"{len(p.raw)}: {show_bytes(p.raw)}", p)
 
 
 @pytest.mark.parametrize("header", KINDS)
 def test_crlf(xac1_dut, xac1_kit, header):
     """The answer to {id} ends with CR LF (docs/protocol.md "Framing")."""
     p = _normal_sample(xac1_kit, header)
-    expect(p.raw.endswith(spec.TERMINATOR), f"{header} answer does not end with CR LF", p)
+    expect(p.raw.endswith(spec.TERMINATOR),
+           f"{header} answer: expected CR LF as the last two bytes, received {show_bytes(p.raw[-2:])} "
+           f"(the answer: {show_bytes(p.raw)})", p)
 
 
 @pytest.mark.parametrize("header", KINDS)
 def test_leading_zero(xac1_dut, xac1_kit, header):
     """The answer to {id} starts with the digit 0, not the letter O (docs/protocol.md "Framing")."""
     p = _normal_sample(xac1_kit, header)
-    expect(p.raw[:1] == spec.LEAD, f"{header} answer starts with {p.raw[:1]!r}, not the digit 0", p)
+    expect(p.raw[:1] == spec.LEAD, f"{header} answer: expected the digit 0 as the first byte, "
+                                   f"received {show_bytes(p.raw[:1])} (the answer: {show_bytes(p.raw)})", p)
 
 
 @pytest.mark.parametrize("header", [pytest.param(h, marks=pytest.mark.xac1_motion, id=h) if h in NEEDS_MOTION
@@ -56,7 +61,8 @@ def test_mandatory_2(xac1_dut, xac1_kit, header):
     p = _normal_sample(xac1_kit, header)
     at = two_offset(header)
     expect(p.raw[at:at + 1] == spec.TWO.text.encode(),
-           f"{header} answer: byte {at} is {p.raw[at:at + 1]!r}, expected the mandatory '2'", p)
+           f"{header} answer: expected the mandatory 2 at byte {at}, received {show_bytes(p.raw[at:at + 1])} "
+           f"(the answer: {show_bytes(p.raw)}, {len(p.raw)} bytes)", p)
 
 
 def test_alarm_answer_framing(xac1_dut):
@@ -70,4 +76,5 @@ def test_alarm_answer_framing(xac1_dut):
     expect(p.raw.startswith(spec.ALARM_HEADER.encode()), f"expected an alarm answer 0%%Ec, got "
                                                            f"{describe_answer(p)}", p)
     expect(len(p.raw) == want and p.raw.endswith(spec.TERMINATOR),
-           f"alarm answer is {len(p.raw)} bytes / ends {p.raw[-2:]!r}; expected {want} bytes ending CR LF", p)
+           f"alarm answer: expected {want} bytes ending CR LF, received {len(p.raw)} bytes ending "
+           f"{show_bytes(p.raw[-2:])}", p)

@@ -10,6 +10,7 @@ import pytest
 
 from conformance.evidence import describe_answer, expect
 from conformance.kit import MALFORMED
+from xac1_proto.codec import show_bytes
 
 CASES = [pytest.param(m, id=m.name, marks=[pytest.mark.xac1_motion] if m.moves else []) for m in MALFORMED]
 
@@ -21,5 +22,7 @@ def test_malformed_answered_with_alarm(xac1_dut, xac1_kit, bad):
     if bad.moves:
         xac1_kit.require_homed()
     p = xac1_dut.probe(bad.make(xac1_kit))
-    expect(not p.timed_out, f"{bad.what}: no answer (silence)", p)
-    expect(p.alarm is not None, f"{bad.what}: answered {describe_answer(p)}, expected an alarm answer", p)
+    expect(not p.timed_out, f"{bad.what} ({show_bytes(p.sent)}): expected an alarm answer 0%%Ec, received "
+                            f"no answer (silence) within {xac1_dut.settings.timeout:g} s", p)
+    expect(p.alarm is not None, f"{bad.what} ({show_bytes(p.sent)}): expected an alarm answer 0%%Ec, "
+                                f"received {describe_answer(p)}", p)

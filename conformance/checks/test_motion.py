@@ -28,8 +28,8 @@ def test_point_move_reaches_target(xac1_dut, xac1_kit):
     m = xac1_dut.send(MovePoint(n=n))
     expect(m.answered, f"0MP{n:X} got {describe_answer(m)}", w, m)
     r = _position(xac1_dut, w, m)
-    expect(r.frame.pos == target, f"after 0MP{n:X} the axis is at {r.frame.pos:06X}, point {n:X} is at "
-                                  f"{target:06X}", w, m, r)
+    expect(r.frame.pos == target, f"0RC after 0MP{n:X}: expected Pos={target:06X} (point {n:X}'s Pos), "
+                                  f"received Pos={r.frame.pos:06X}", w, m, r)
 
 
 def test_direct_move_reaches_target(xac1_dut, xac1_kit):
@@ -39,7 +39,8 @@ def test_direct_move_reaches_target(xac1_dut, xac1_kit):
     m = xac1_dut.send(MoveDirect(vel=0x3C, a=2, pos=target))
     expect(m.answered, f"0MV got {describe_answer(m)}", m)
     r = _position(xac1_dut, m)
-    expect(r.frame.pos == target, f"after 0MV to {target:06X} the axis is at {r.frame.pos:06X}", m, r)
+    expect(r.frame.pos == target, f"0RC after 0MV: expected Pos={target:06X} (the move's target), received "
+                                  f"Pos={r.frame.pos:06X}", m, r)
 
 
 def test_homing(xac1_dut, xac1_kit):

@@ -15,4 +15,5 @@ def test_outputs_read_back(xac1_dut, o):
     expect(w.answered, f"0WS{o}2 got {describe_answer(w)}", w)
     r = xac1_dut.send(ReadOutputs())
     expect(isinstance(r.frame, ReadOutputsAnswer), f"0RS got {describe_answer(r)}", w, r)
-    expect(r.frame.o == o, f"0RS answers O={r.frame.o} after 0WS wrote O={o}", w, r)
+    expect(r.frame.o == o,
+           f"0RS after 0WS{o}2: expected O={o}, received O={r.frame.o} ({describe_answer(r)})", w, r)

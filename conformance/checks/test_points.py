@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
+from conformance.evidence import describe_answer, differences, expect
 from conformance.safety import POINTS
 from xac1_proto.frames import (
     MoveDirect,
@@ -25,7 +25,8 @@ def test_read_point_carries_n(xac1_dut):
     for n in POINTS:
         p = xac1_dut.send(ReadPoint(n=n))
         expect(isinstance(p.frame, ReadPointAnswer), f"0RP{n:X} got {describe_answer(p)}", p)
-        expect(p.frame.n == n, f"0RP{n:X} answered N={p.frame.n:X}", p)
+        expect(p.frame.n == n, f"0RP{n:X}: expected N={n:X} in the answer, received N={p.frame.n:X} "
+                               f"({describe_answer(p)})", p)
 
 
 @pytest.mark.parametrize("k,values", list(enumerate(EXTREMES)),
@@ -38,9 +39,11 @@ def test_read_back_after_write(xac1_dut, xac1_kit, k, values):
     expect(w.answered, f"0WP got {describe_answer(w)}", w)
     r = xac1_dut.send(ReadPoint(n=n))
     expect(isinstance(r.frame, ReadPointAnswer), f"0RP{n:X} got {describe_answer(r)}", w, r)
-    got = (r.frame.n, r.frame.v, r.frame.a, r.frame.o, r.frame.pos)
-    expect(got == (n, v, a, o, pos), f"0RP{n:X} reads N={got[0]:X} V={got[1]} A={got[2]} O={got[3]} "
-                                     f"Pos={got[4]:06X}; 0WP wrote V={v} A={a} O={o} Pos={pos:06X}", w, r)
+    want = {"N": f"{n:X}", "V": str(v), "A": str(a), "O": str(o), "Pos": f"{pos:06X}"}
+    f = r.frame
+    got = {"N": f"{f.n:X}", "V": str(f.v), "A": str(f.a), "O": str(f.o), "Pos": f"{f.pos:06X}"}
+    expect(got == want, f"0RP{n:X} after 0WP: expected the values written, received {describe_answer(r)}; "
+                        f"{differences(want, got)}", w, r)
 
 
 @pytest.mark.xac1_motion

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
+from conformance.evidence import describe_answer, differences, expect
 from xac1_proto import spec
 from xac1_proto.frames import MoveDirect, ReadCurrentAnswer, StoreCurrent
 
@@ -18,8 +18,9 @@ def test_rc_before_homing(xac1_dut):
     expect(isinstance(p.frame, ReadCurrentAnswer), f"0RC got {describe_answer(p)}", p)
     f = p.frame
     expect((f.n, f.v, f.a, f.pos) == (0, 0, 0, spec.UNKNOWN_POSITION),
-           f"0RC before homing answered N={f.n:X} V={f.v} A={f.a} Pos={f.pos:06X}; expected N=0 V=0 A=0 "
-           f"Pos=FFFFFF", p)
+           f"0RC before homing: expected N=0 V=0 A=0 Pos=FFFFFF, received {describe_answer(p)}; "
+           + differences({"N": "0", "V": "0", "A": "0", "Pos": "FFFFFF"},
+                         {"N": f"{f.n:X}", "V": str(f.v), "A": str(f.a), "Pos": f"{f.pos:06X}"}), p)
     xac1_dut.info("0RC O before homing", "silent item 8", f"O={f.o} (the current OUT ports)", p)
 
 
