@@ -476,6 +476,9 @@ class _Stop:
 
 
 def _start(d: Device, sel: selectors.BaseSelector) -> None:
+    for old in (d.junit, d.report):  # a file left by an earlier run must not pass for this run's
+        if old is not None:
+            old.unlink(missing_ok=True)
     read_fd, write_fd = os.pipe()
     env = dict(os.environ)
     env["PYTEST_PLUGINS"] = ",".join(p for p in (env.get("PYTEST_PLUGINS"), PROGRESS_PLUGIN) if p)
