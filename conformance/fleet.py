@@ -58,6 +58,7 @@ PROGRESS_PLUGIN: Final = "conformance.fleet_progress"
 _VERDICT = re.compile(r"^xac1 conformance: (.*) \(exit status (-?\d+)\)\s*$")
 _FAILED = re.compile(r"^(?:FAIL|ERROR) (\S+): (.+)$")
 _STOPPED = re.compile(r"^run stopped: (.+)$")
+_UNSAFE = re.compile(r"^safety (?:PROBLEM|NOT RESTORED)\b.*$")  # the child's word that a restore failed
 _FIRMWARE = (re.compile(r"^\s*firmware version: (\S+)"), re.compile(r"^device (\d{3}) on "))
 
 
@@ -266,6 +267,7 @@ class Device:
     firmware: str | None = None
     unit: str | None = None
     killed: bool = False
+    safety: list[str] = field(default_factory=list)  # the child's lines saying its restore failed
 
     @property
     def running(self) -> bool:
@@ -316,6 +318,7 @@ def gather(d: Device, interrupted: bool) -> None:
             d.verdict_line = m.group(1)
             break
     d.failed = [(m.group(1), m.group(2)) for line in lines if (m := _FAILED.match(line))]
+    d.safety = [line.strip() for line in lines if _UNSAFE.match(line)]
     if m2 := next((m for line in lines if (m := _STOPPED.match(line))), None):
         d.reason = m2.group(1)
     props: dict[str, str] = {}
@@ -393,8 +396,10 @@ def live_table(devices: Sequence[Device], now: float) -> Any:
 
 def _failed_text(d: Device) -> str:
     if d.verdict == NOT_TESTED or (d.verdict == INTERRUPTED and not d.failed):
-        return d.reason
-    return ", ".join(name for name, _ in d.failed) or "-"
+        text = d.reason
+    else:
+        text = ", ".join(name for name, _ in d.failed) or "-"
+    return "; ".join([text, *d.safety]) if d.safety else text
 
 
 def fleet_table(devices: Sequence[Device]) -> Any:
@@ -429,7 +434,7 @@ def write_pages(out_dir: Path, devices: Sequence[Device], status: int, started: 
 
     rows = [{
         "port": d.target.url, "unit": d.unit, "firmware": d.firmware, "verdict": d.verdict,
-        "verdict_line": d.verdict_line, "reason": d.reason, "failed": d.failed,
+        "verdict_line": d.verdict_line, "reason": d.reason, "failed": d.failed, "safety": d.safety,
         "duration": _seconds(d.elapsed(d.t_end or 0.0)), "status": d.status,
         "report": d.report.name if d.report else None, "junit": d.junit.name,
         "log": d.log.name if d.log else None,
