@@ -344,8 +344,8 @@ def gather(d: Device, interrupted: bool) -> None:
     status = d.status
     if d.killed:
         d.verdict = NOT_TESTED
-        d.reason = f"did not stop within {STOP_GRACE_S:g} s of the interrupt and was killed: its device may " \
-                   f"not be restored"
+        d.reason = (f"did not stop within {STOP_GRACE_S:g} s of the interrupt and was killed: its device "
+                    f"may not be restored")
     elif status == 0:
         d.verdict = CONFORMS
     elif status == 1 and d.verdict_line:

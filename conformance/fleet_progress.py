@@ -9,6 +9,7 @@ report). It judges nothing and changes nothing in the run; without the variable 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 
@@ -22,10 +23,8 @@ def _tell(event: dict[str, object]) -> None:
     fd = os.environ.get(ENV)
     if not fd:
         return
-    try:
+    with contextlib.suppress(OSError, ValueError):  # the fleet went away: the run itself goes on
         os.write(int(fd), (json.dumps(event) + "\n").encode())
-    except (OSError, ValueError):
-        pass  # the fleet went away or the variable is wrong: the run itself goes on
 
 
 def check_name(nodeid: str) -> str:

@@ -234,7 +234,8 @@ def _two_and_a_broken_one(sims, tmp_path: Path, mode: str) -> tuple[subprocess.C
     relay = Relay(cut.address, after=70, mode=mode)
     try:
         ports = tmp_path / "rack.txt"
-        ports.write_text(f"# rack 7\n{good.url}  UNIT-A   # the good one\n\n{relay.url} UNIT-B\n{other.url}\n")
+        ports.write_text(f"# rack 7\n{good.url}  UNIT-A   # the good one\n\n{relay.url} UNIT-B\n"
+                         f"{other.url}\n")
         t0 = time.monotonic()
         r = fleet(["--ports", str(ports), *MOTION, "--report-dir", str(tmp_path / "out")], tmp_path)
         took = time.monotonic() - t0
@@ -259,16 +260,19 @@ def test_device_that_stops_answering_ends_its_own_run(sims, tmp_path):
     assert "Traceback" not in r.stdout + r.stderr
     row = table_row(r.stdout, relay.url)
     assert f" {NOT_TESTED} " in row and " UNIT-B " in row and "STOPPED ANSWERING" in row
-    assert r.stdout.splitlines()[-1] == (f"xac1 conformance: fleet of 3: 2 CONFORMS, 1 NOT TESTED; not tested: "
-                                         f"{relay.url} (exit status 3)")
+    assert r.stdout.splitlines()[-1] == ("xac1 conformance: fleet of 3: 2 CONFORMS, 1 NOT TESTED; "
+                                         f"not tested: {relay.url} (exit status 3)")
     page = (tmp_path / "out" / "fleet.html").read_text()
     assert "THE DEVICE STOPPED ANSWERING" in page and "UNIT-B" in page
 
 
+UNPLUGGED_DEFECT = ("single-device run: a port that closes mid-run makes every later check ERROR "
+                    "(SerialException: socket disconnected) and exits 1 instead of ending the run (exit 3); "
+                    "the fix belongs in conformance/dut.py (the one-device run), not in the fleet")
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="single-device run: a port that closes mid-run makes every later check "
-                   "ERROR (SerialException: socket disconnected) and exits 1 instead of stopping the run with "
-                   "exit 3; the fix belongs in conformance/dut.py (the one-device run), not in the fleet")
+@pytest.mark.xfail(strict=True, reason=UNPLUGGED_DEFECT)
 def test_unplugged_device_ends_its_own_run(sims, tmp_path):
     """A device unplugged mid-run (its port closes) ends its own run as NOT TESTED; the others conform
     and are restored; the fleet exits 3."""
@@ -334,7 +338,8 @@ def test_bad_input_stops_before_anything_is_sent(case, quiet_sim, tmp_path):
         "twice": (["--port", url, "--port", url], f"port {url} is listed twice: --port and --port"),
         "twice-symlink": (["--port", pty_path, "--port", str(link), "--port", url],
                           f"port {link} is listed twice: --port (as {pty_path}) and --port"),
-        "missing": (["--port", url, "--port", "/dev/ttyNOPE9"], "port /dev/ttyNOPE9 (--port): no such device"),
+        "missing": (["--port", url, "--port", "/dev/ttyNOPE9"],
+                    "port /dev/ttyNOPE9 (--port): no such device"),
         "bad-url": (["--port", url, "--port", "socket://127.0.0.1:notaport"],
                     "port socket://127.0.0.1:notaport (--port): expected HOST:PORT"),
         "file-words": (["--ports", str(ports)], f"--ports {ports} line 3: expected a port URL and optionally "
@@ -401,11 +406,13 @@ def test_gather_reads_exit_status_verdict_line_and_junit(tmp_path):
     crash = _device(tmp_path, "Traceback (most recent call last):\n", 1)
     gather(crash, interrupted=False)
     assert crash.verdict == NOT_TESTED and "without a verdict (exit status 1)" in crash.reason
-    stopped = _device(tmp_path, "device 100 on x\nrun stopped: the device stopped answering: it answered 3 "
-                                "commands\nxac1 conformance: THE DEVICE STOPPED ANSWERING: x (exit status 3)\n", 3)
+    text = ("device 100 on x\nrun stopped: the device stopped answering: it answered 3 commands\n"
+            "xac1 conformance: THE DEVICE STOPPED ANSWERING: x (exit status 3)\n")
+    stopped = _device(tmp_path, text, 3)
     gather(stopped, interrupted=False)
     assert stopped.verdict == NOT_TESTED and stopped.firmware == "100"
-    assert stopped.reason == "THE DEVICE STOPPED ANSWERING: the device stopped answering: it answered 3 commands"
+    assert stopped.reason == ("THE DEVICE STOPPED ANSWERING: the device stopped answering: it answered 3 "
+                              "commands")
     killed = _device(tmp_path, "", -9)
     gather(killed, interrupted=False)
     assert killed.verdict == NOT_TESTED and "killed by signal 9" in killed.reason
