@@ -72,16 +72,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"with --probe: seconds to wait for each answer (default {PROBE_TIMEOUT_S})")
 
 
-def stable_names(by_id_dir: Path = BY_ID_DIR) -> dict[str, str]:
+def stable_names(by_id_dir: Path | None = None) -> dict[str, str]:
     """Device path -> its ``/dev/serial/by-id/...`` symlink ({} when the directory does not exist)."""
     try:
-        links = sorted(by_id_dir.iterdir())
+        links = sorted((by_id_dir or BY_ID_DIR).iterdir())
     except OSError:
         return {}
     return {os.path.realpath(link): str(link) for link in links}
 
 
-def enumerate_ports(by_id_dir: Path = BY_ID_DIR) -> list[PortRow]:
+def enumerate_ports(by_id_dir: Path | None = None) -> list[PortRow]:
     """The ports pyserial's ``list_ports`` finds, each with its stable name when udev made one."""
     from serial.tools import list_ports
 
