@@ -124,6 +124,8 @@ def _resolve(url: str) -> str:
     """The port behind ``url`` for duplicate detection; FleetError when it does not exist."""
     import serial
 
+    from xac1_proto import urlhandler  # noqa: F401  (registers xac1sim:// with pyserial)
+
     if "://" not in url:
         if not os.path.exists(url):
             raise FleetError("no such device")
@@ -290,13 +292,19 @@ class Device:
 
     def state_text(self) -> str:
         if self.t_end is not None:
-            return self.verdict
+            return self.verdict or f"ended: {self.last_line()}"
         if self.n:
             return f"check {self.n}/{self.of or '?'}: {self.check}"
         return self.check
 
     def text(self) -> str:
         return self.output.decode("utf-8", "replace")
+
+    def last_line(self) -> str:
+        """The child's verdict line, or its exit status when it printed none."""
+        lines = reversed(self.text().splitlines())
+        found = (m.group(1) for line in lines if (m := _VERDICT.match(line)))
+        return next(found, f"exit status {self.status}")
 
 
 def _usb_serials() -> dict[str, str]:
@@ -603,9 +611,8 @@ def _watch(devices: Sequence[Device], console: Any, stop: _Stop) -> bool:
                 if d.running and d.streams == 0 and d.proc is not None and d.proc.poll() is not None:
                     d.t_end, d.status = now, d.proc.returncode
                     if live is None:
-                        line = next((m.group(1) for line in reversed(d.text().splitlines())
-                                     if (m := _VERDICT.match(line))), f"ended, exit status {d.status}")
-                        console.print(f"{d.target.url}: {line} ({_seconds(d.elapsed(now))})", markup=False)
+                        console.print(f"{d.target.url}: {d.last_line()} ({_seconds(d.elapsed(now))})",
+                                      markup=False)
             if stop.signum is not None and forwarded_at is None:
                 forwarded_at = now
                 console.print("xac1 conformance: stopping: each device finishes its restore "
