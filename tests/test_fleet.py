@@ -433,3 +433,20 @@ def test_worst_device_wins_3_1_4_0(verdicts, status, tmp_path):
         devices.append(d)
     assert fleet_status(devices, interrupted=False) == status
     assert fleet_status(devices, interrupted=True) == 2
+
+
+def test_every_option_but_the_fleets_own_reaches_each_device():
+    """Each child gets the options as given (built from the parser, so options added later pass too),
+    never the fleet's own ports and files."""
+    import argparse
+
+    from conformance import cli
+    from conformance.fleet import passthrough
+
+    p = argparse.ArgumentParser()
+    cli.add_arguments(p)
+    args = p.parse_args(["--port", "A", "--port", "B", "--allow-motion", "--safe-range", "0:0x1000",
+                         "--fresh", "--scratch-points", "1,2", "--seed", "7", "--timeout", "0.3", "-k",
+                         "crlf or echo", "-v", "--report-dir", "out", "--report-format", "md"])
+    assert passthrough(args) == ["--allow-motion", "--safe-range", "0:0x1000", "--fresh", "--scratch-points",
+                                 "1,2", "--seed", "7", "--timeout", "0.3", "-k", "crlf or echo", "--verbose"]
