@@ -23,6 +23,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from markupsafe import escape
 
 from conformance.fleet import (
     CONFORMS,
@@ -307,7 +308,8 @@ def test_ctrl_c_stops_every_device_and_each_restores(sims, tmp_path):
         # single run interrupted while an alarm is latched can fail its restore: see the report.)
         problems = [line for line in log.splitlines() if line.startswith("safety PROBLEM")]
         if problems:
-            assert problems[0] in page and problems[0] in (tmp_path / "out" / "fleet.md").read_text()
+            assert str(escape(problems[0])) in page
+            assert problems[0] in (tmp_path / "out" / "fleet.md").read_text()
         else:
             assert_restored(sim)
     assert stdout.splitlines()[-1] == "xac1 conformance: fleet of 2: 2 INTERRUPTED (exit status 2)"
