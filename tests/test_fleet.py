@@ -286,7 +286,8 @@ def test_unplugged_device_ends_its_own_run(sims, tmp_path):
 def test_ctrl_c_stops_every_device_and_each_restores(sims, tmp_path):
     """SIGINT to the fleet once the runs have written to the devices: it is forwarded once to each
     child, each restores its own device (points and OUT ports as before), the fleet says so and exits 2."""
-    a, b = sims("a"), sims("b", pty=True)
+    # Answers 20 ms late, so that the interrupt lands early in each run, far from the last check.
+    a, b = sims("a", "--turnaround", "20"), sims("b", "--turnaround", "20", pty=True)
     proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "conformance", "--port", a.url, "--port",
                              b.url, *MOTION, "--report-dir", str(tmp_path / "out")], cwd=tmp_path,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
