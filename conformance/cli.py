@@ -24,8 +24,10 @@ INI = Path(__file__).resolve().parent / "conformance.ini"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--port", metavar="URL", help="device under test: a pyserial URL (socket://HOST:PORT, "
-                   "rfc2217://...) or a device path; default: the built-in simulator")
+    p.add_argument("--port", metavar="URL", action="append",
+                   help="device under test: a pyserial URL (socket://HOST:PORT, rfc2217://..., hwgrep://...) "
+                        "or a device path; default: the built-in simulator. Repeat it to test several "
+                        "devices at once (see --ports)")
     p.add_argument("--allow-motion", action="store_true",
                    help="allow moving the actuator (implied for the simulator); needs --safe-range")
     p.add_argument("--safe-range", metavar="LO:HI",
@@ -52,6 +54,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", metavar="S", type=float, help="seconds to wait for an answer")
     p.add_argument("-k", metavar="EXPR", dest="select", help="run only the checks matching EXPR (pytest -k)")
     p.add_argument("-v", "--verbose", action="store_true", help="show pytest's own output and tracebacks")
+    from .fleet import add_arguments as fleet_arguments
+
+    fleet_arguments(p)
 
 
 def _plugin_registered() -> bool:
@@ -89,6 +94,11 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from . import fleet
+
+    if fleet.wanted(args):  # several devices: one child process each (conformance/fleet.py)
+        return fleet.run(args)
+    args.port = args.port[0] if args.port else None
     from .stopping import Interrupted, StopPolicy
 
     policy = StopPolicy().install()  # until the plugin takes over: a signal ends the run quietly

@@ -34,6 +34,9 @@ COMMANDS: Final[dict[str, Subcommand]] = {
     "console": Subcommand("xac1_proto.cli.console_cmd",
                           "interactive console: named commands (read 3, home, go ...), raw frames (!0RV), "
                           "history, help"),
+    "ports": Subcommand("xac1_proto.cli.ports_cmd",
+                        "list the serial ports (USB ids, serial numbers) and, with --probe, which answer as "
+                        "an XA-C1"),
     "conformance": Subcommand("conformance.cli",
                               "run the conformance suite against a controller (default: the built-in "
                               "simulator) and report"),

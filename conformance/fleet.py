@@ -1,0 +1,636 @@
+"""The fleet: ``xac1 conformance --port A --port B ...`` (or ``--ports FILE``) tests many devices at once.
+
+How it works: one device's run is today's suite, unchanged: the fleet starts one
+``xac1 conformance --port X ...`` child process per device (the same options, its own report, JUnit
+file and log under ``--report-dir``), watches them, and gathers each result from three things the child
+leaves: its exit status, its verdict line (the last line it prints) and its JUnit file (failed checks,
+suite properties such as the firmware). A small pytest plugin loaded into each child
+(``conformance.fleet_progress``) tells the fleet which check is running, for one live line per device.
+
+Why a process per device and not pytest-xdist: xdist spreads the checks of ONE suite over workers,
+whereas here each device needs the whole suite in order with its own session: its own safety snapshot
+before the first write and restore at the end (docs/protocol.md "Behaviour the vendor text states":
+the suite leaves a device as it found it), its own seed and settings, its own report. A process per
+device isolates them completely: a device that stops answering, is unplugged, or a run that crashes or
+hangs ends that child only; the others go on. Ctrl-C (or SIGTERM) reaches the fleet alone (the children
+run in their own sessions, so the terminal's SIGINT does not hit them twice); the fleet forwards one
+SIGINT to each child, which restores its own device exactly as a single run does, and waits for them
+at most ``STOP_GRACE_S`` seconds before killing what is left (and saying which device may not be
+restored).
+
+Exit status, the worst device wins in the order 3 > 1 > 4 > 0: 3 when a device could not be tested
+(named; nothing is known about it and it may be left unrestored, the most urgent to tell), 1 when one
+does not conform (a known defect), 4 when one is incomplete (no defect found, not every check ran),
+0 only when every device conforms. An interrupted fleet exits 2, as an interrupted single run does;
+bad input (a port listed twice, a port that does not exist, a malformed ports file, an unwritable
+--report-dir) exits 2 before anything is sent.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import datetime as _dt
+import json
+import os
+import re
+import selectors
+import shlex
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+STOP_GRACE_S: Final = 60.0  # after Ctrl-C: how long each child may take to restore its device
+# Device verdicts of the fleet and the exit status each gives; RANK: worst first wins (3 > 1 > 4 > 0).
+CONFORMS, NOT_CONFORM, INCOMPLETE, NOT_TESTED, INTERRUPTED = (
+    "CONFORMS", "DOES NOT CONFORM", "INCOMPLETE", "NOT TESTED", "INTERRUPTED")
+EXIT: Final = {CONFORMS: 0, NOT_CONFORM: 1, INCOMPLETE: 4, NOT_TESTED: 3, INTERRUPTED: 2}
+RANK: Final = (NOT_TESTED, NOT_CONFORM, INCOMPLETE, CONFORMS)
+FLEET_OWN: Final = frozenset({"port", "ports", "report_dir", "report_format", "report", "junitxml"})
+PROGRESS_PLUGIN: Final = "conformance.fleet_progress"
+_VERDICT = re.compile(r"^xac1 conformance: (.*) \(exit status (-?\d+)\)\s*$")
+_FAILED = re.compile(r"^(?:FAIL|ERROR) (\S+): (.+)$")
+_STOPPED = re.compile(r"^run stopped: (.+)$")
+_UNSAFE = re.compile(r"^safety (?:PROBLEM|NOT RESTORED)\b.*$")  # the child's word that a restore failed
+_FIRMWARE = (re.compile(r"^\s*firmware version: (\S+)"), re.compile(r"^device (\d{3}) on "))
+
+
+class FleetError(Exception):
+    """Bad input found before anything is sent (the message says what and where)."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The fleet's own options, added to ``xac1 conformance``'s."""
+    p.add_argument("--ports", metavar="FILE",
+                   help="test every port listed in FILE at once (one URL a line, optionally followed by the "
+                        "unit's id; # comments), each in its own process")
+    p.add_argument("--report-dir", metavar="DIR",
+                   help="with several ports: write DIR/<port>.html (or .md), DIR/<port>.xml (JUnit), "
+                        "DIR/<port>.log and DIR/fleet.html, DIR/fleet.md")
+    p.add_argument("--report-format", choices=("html", "md"), default="html",
+                   help="with --report-dir: each device's report as html (default) or md")
+    p.set_defaults(_conformance_parser=p)
+
+
+def wanted(args: argparse.Namespace) -> bool:
+    """True when the options ask for the fleet: several ports, a ports file, or a report directory."""
+    return len(args.port or []) > 1 or bool(args.ports) or bool(args.report_dir)
+
+
+# ---- the ports: where they come from, their names on disk, which are the same ----
+
+@dataclass(frozen=True)
+class Target:
+    """One device to test: its URL, where it was named, the unit id the ports file gives (if any)."""
+
+    url: str
+    where: str  # "--port" or "FILE line N"
+    unit: str | None = None
+
+
+def read_ports_file(path: str) -> list[Target]:
+    """``FILE``: one URL a line, optionally followed by the unit's id; blank lines and ``#`` comments."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise FleetError(f"--ports {path}: cannot read the ports file ({exc})") from None
+    out = []
+    for number, line in enumerate(text.splitlines(), 1):
+        words = line.split("#", 1)[0].split()
+        if not words:
+            continue
+        if len(words) > 2:
+            raise FleetError(f"--ports {path} line {number}: expected a port URL and optionally a unit id, "
+                             f"got {len(words)} words: {line.strip()!r}")
+        out.append(Target(words[0], f"{path} line {number}", words[1] if len(words) == 2 else None))
+    if not out:
+        raise FleetError(f"--ports {path}: the file names no port (one URL a line, # comments)")
+    return out
+
+
+def slug(url: str) -> str:
+    """A file name for a port: ``socket://127.0.0.1:4001`` -> ``socket-127.0.0.1-4001``."""
+    return re.sub(r"[^A-Za-z0-9._]+", "-", url).strip("-.") or "port"
+
+
+def _resolve(url: str) -> str:
+    """The port behind ``url`` for duplicate detection; FleetError when it does not exist."""
+    import serial
+
+    from xac1_proto import urlhandler  # noqa: F401  (registers xac1sim:// with pyserial)
+
+    if "://" not in url:
+        if not os.path.exists(url):
+            raise FleetError("no such device")
+        return os.path.realpath(url)
+    scheme, _, rest = url.partition("://")
+    scheme = scheme.lower()
+    try:
+        serial.serial_for_url(url, do_not_open=True)
+    except (ValueError, serial.SerialException) as exc:
+        raise FleetError(f"not a port URL pyserial knows ({exc})") from None
+    if scheme == "hwgrep":
+        from serial.tools import list_ports
+
+        regex = rest.split("&", 1)[0]
+        found = sorted(p.device for p in list_ports.grep(regex))
+        if not found:
+            raise FleetError(f"no serial port matches {regex!r} (xac1 ports lists them)")
+        return os.path.realpath(found[0])
+    if scheme in ("socket", "rfc2217"):
+        host, _, port = rest.split("?", 1)[0].split("/", 1)[0].rpartition(":")
+        if not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise FleetError("expected HOST:PORT with a port number 1..65535")
+        return f"{scheme}://{host.lower()}:{int(port)}"
+    return f"{scheme}://{rest}"
+
+
+def targets(args: argparse.Namespace) -> list[Target]:
+    """Every port named, checked: each exists (or is a well-formed URL) and none is named twice."""
+    named = [Target(url, "--port") for url in args.port or []]
+    if args.ports:
+        named += read_ports_file(args.ports)
+    seen: dict[str, Target] = {}
+    for t in named:
+        try:
+            key = _resolve(t.url)
+        except FleetError as exc:
+            raise FleetError(f"port {t.url} ({t.where}): {exc}") from None
+        if key in seen:
+            first = seen[key]
+            same = "" if first.url == t.url else f" (as {first.url})"
+            raise FleetError(f"port {t.url} is listed twice: {first.where}{same} and {t.where}; "
+                             f"each device runs once")
+        seen[key] = t
+    return named
+
+
+def file_names(ts: Sequence[Target]) -> list[str]:
+    """One distinct file stem a target (``slug``, ``-2``... appended when two slugs collide)."""
+    out: list[str] = []
+    for t in ts:
+        stem, k = slug(t.url), 2
+        while stem in out:
+            stem, k = f"{slug(t.url)}-{k}", k + 1
+        out.append(stem)
+    return out
+
+
+def _writable_dir(path: str) -> Path:
+    d = Path(path)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=d):
+            pass
+    except OSError as exc:
+        raise FleetError(f"--report-dir {path}: cannot write there ({exc.strerror or exc})") from None
+    return d
+
+
+def _check_options(args: argparse.Namespace, ts: Sequence[Target]) -> None:
+    """The options each child will get, checked once here (the same errors a single run gives)."""
+    from .settings import Settings, SettingsError
+
+    for flag, value in (("--report", args.report), ("--junitxml", args.junitxml)):
+        if value:
+            raise FleetError(f"{flag} names one file; with several ports use --report-dir DIR "
+                             f"(DIR/<port>.html, DIR/<port>.xml, DIR/fleet.html)")
+    if getattr(args, "unit_id", None) and len(ts) > 1:
+        raise FleetError("--unit-id names one unit; with several ports give each unit's id after its URL "
+                         "in the --ports file")
+    for t in ts:
+        try:
+            Settings.make(t.url, args.allow_motion, args.fresh, args.safe_range, args.seed, args.examples,
+                          args.timeout, args.scratch_points, args.restore_mode0, cli=True)
+        except SettingsError as exc:
+            raise FleetError(str(exc).replace("--xac1-", "--")) from None
+
+
+# ---- one device's child process ----
+
+def passthrough(args: argparse.Namespace) -> list[str]:
+    """The options given to ``xac1 conformance``, as a command line, without the fleet's own (each
+    child gets its own port and files). Built from the parser, so every option reaches the children."""
+    parser: argparse.ArgumentParser = args._conformance_parser
+    out: list[str] = []
+    for action in parser._actions:
+        if not action.option_strings or action.dest in FLEET_OWN or action.dest == "help":
+            continue
+        value = getattr(args, action.dest, action.default)
+        if value == action.default or value is None:
+            continue
+        flag = next((o for o in action.option_strings if o.startswith("--")), action.option_strings[0])
+        if action.nargs == 0:
+            out.append(flag)
+        elif isinstance(value, list):
+            for v in value:
+                out += [flag, str(v)]
+        else:
+            out += [flag, str(value)]
+    return out
+
+
+def _supports(args: argparse.Namespace, flag: str) -> bool:
+    return flag in args._conformance_parser._option_string_actions
+
+
+@dataclass
+class Device:
+    """One device's run: the child, what it has said so far, and (once it ended) the gathered result."""
+
+    target: Target
+    stem: str
+    report: Path | None
+    junit: Path
+    log: Path | None
+    argv: list[str]
+    proc: subprocess.Popen[bytes] | None = None
+    t_start: float = 0.0
+    t_end: float | None = None
+    check: str = "starting"
+    n: int = 0
+    of: int = 0
+    output: bytearray = field(default_factory=bytearray)
+    _progress: bytes = b""
+    streams: int = 0  # pipes still open
+    # gathered at the end
+    status: int | None = None
+    verdict: str = ""
+    verdict_line: str = ""
+    reason: str = ""
+    failed: list[tuple[str, str]] = field(default_factory=list)
+    firmware: str | None = None
+    unit: str | None = None
+    killed: bool = False
+    safety: list[str] = field(default_factory=list)  # the child's lines saying its restore failed
+
+    @property
+    def running(self) -> bool:
+        return self.proc is not None and self.t_end is None
+
+    def elapsed(self, now: float) -> float:
+        return (self.t_end if self.t_end is not None else now) - self.t_start
+
+    def progress(self, data: bytes) -> None:
+        self._progress += data
+        *lines, self._progress = self._progress.split(b"\n")
+        for line in lines:
+            try:
+                event = json.loads(line)
+            except ValueError:
+                continue
+            self.of = int(event.get("of", self.of))
+            self.n = int(event.get("n", self.n))
+            self.check = str(event.get("check") or event.get("state") or self.check)
+
+    def state_text(self) -> str:
+        if self.t_end is not None:
+            return self.verdict or f"ended: {self.last_line()}"
+        if self.n:
+            return f"check {self.n}/{self.of or '?'}: {self.check}"
+        return self.check
+
+    def text(self) -> str:
+        return self.output.decode("utf-8", "replace")
+
+    def last_line(self) -> str:
+        """The child's verdict line, or its exit status when it printed none."""
+        lines = reversed(self.text().splitlines())
+        found = (m.group(1) for line in lines if (m := _VERDICT.match(line)))
+        return next(found, f"exit status {self.status}")
+
+
+def _usb_serials() -> dict[str, str]:
+    """Device path (resolved) -> USB serial number, for the ports pyserial enumerates."""
+    try:
+        from xac1_proto.cli.ports_cmd import enumerate_ports
+
+        return {os.path.realpath(r.device): r.serial_number for r in enumerate_ports() if r.serial_number}
+    except Exception:  # noqa: BLE001 - enumeration is a nicety for the table; never stop the fleet
+        return {}
+
+
+def gather(d: Device, interrupted: bool) -> None:
+    """The device's verdict from its exit status, its verdict line and its JUnit file."""
+    text = d.text()
+    lines = text.splitlines()
+    for line in reversed(lines):
+        if m := _VERDICT.match(line):
+            d.verdict_line = m.group(1)
+            break
+    d.failed = [(m.group(1), m.group(2)) for line in lines if (m := _FAILED.match(line))]
+    d.safety = [line.strip() for line in lines if _UNSAFE.match(line)]
+    if m2 := next((m for line in lines if (m := _STOPPED.match(line))), None):
+        d.reason = m2.group(1)
+    props: dict[str, str] = {}
+    junit_failed: list[tuple[str, str]] = []
+    with contextlib.suppress(OSError, ET.ParseError):
+        root = ET.parse(d.junit).getroot()
+        props = {p.get("name", ""): p.get("value", "") for p in root.iter("property")
+                 if p.get("name") and p.get("value") is not None}
+        for tc in root.iter("testcase"):
+            bad = tc.find("failure")
+            if bad is None:
+                bad = tc.find("error")
+            if bad is not None:
+                name = tc.get("name", "?")
+                junit_failed.append((name[5:] if name.startswith("test_") else name,
+                                     (bad.get("message") or "").strip()))
+    if not d.failed:
+        d.failed = junit_failed
+    d.firmware = props.get("firmware") or next(
+        (m.group(1) for rx in _FIRMWARE for line in lines if (m := rx.match(line))), None)
+    d.unit = (d.target.unit or props.get("unit-id") or props.get("unit_id") or props.get("unit")
+              or props.get("serial") or d.unit)
+    status = d.status
+    if d.killed:
+        d.verdict = NOT_TESTED
+        d.reason = (f"did not stop within {STOP_GRACE_S:g} s of the interrupt and was killed: its device "
+                    f"may not be restored")
+    elif status == 0:
+        d.verdict = CONFORMS
+    elif status == 1 and d.verdict_line:
+        d.verdict = NOT_CONFORM
+    elif status == 4:
+        d.verdict = INCOMPLETE
+    elif status == 2 and interrupted:
+        d.verdict = INTERRUPTED
+    else:
+        d.verdict = NOT_TESTED
+        if not d.reason:
+            head = d.verdict_line.split(":", 1)[0] if d.verdict_line else ""
+            if status is not None and status < 0:
+                why = f"the run was killed by signal {-status}"
+            elif head:
+                why = f"{head} (exit status {status})"
+            else:
+                why = f"the run ended without a verdict (exit status {status}); see its log"
+            d.reason = why
+    if d.verdict == NOT_TESTED and d.verdict_line and not d.reason.startswith(d.verdict_line.split(":")[0]):
+        d.reason = f"{d.verdict_line.split(':', 1)[0]}: {d.reason}"
+
+
+def fleet_status(devices: Sequence[Device], interrupted: bool) -> int:
+    if interrupted:
+        return EXIT[INTERRUPTED]
+    verdicts = {d.verdict for d in devices}
+    return next((EXIT[v] for v in RANK if v in verdicts), 0)
+
+
+# ---- the terminal ----
+
+def _seconds(s: float) -> str:
+    return f"{s:.1f} s"
+
+
+def live_table(devices: Sequence[Device], now: float) -> Any:
+    from rich.table import Table
+
+    t = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
+    t.add_column("port", overflow="fold")
+    t.add_column("state", overflow="fold")
+    t.add_column("elapsed", justify="right", no_wrap=True)
+    for d in devices:
+        t.add_row(d.target.url, d.state_text(), _seconds(d.elapsed(now)))
+    return t
+
+
+def _failed_text(d: Device) -> str:
+    if d.verdict == NOT_TESTED or (d.verdict == INTERRUPTED and not d.failed):
+        text = d.reason
+    else:
+        text = ", ".join(name for name, _ in d.failed) or "-"
+    return "; ".join([text, *d.safety]) if d.safety else text
+
+
+def fleet_table(devices: Sequence[Device]) -> Any:
+    from rich.table import Table
+
+    t = Table(title="XA-C1 fleet", show_lines=False)
+    for name in ("port", "unit", "firmware", "verdict", "failed checks", "duration"):
+        t.add_column(name, overflow="fold", no_wrap=name in ("duration",))
+    style = {CONFORMS: "green", NOT_CONFORM: "red bold", NOT_TESTED: "red bold", INCOMPLETE: "yellow",
+             INTERRUPTED: "yellow"}
+    for d in devices:
+        t.add_row(d.target.url, d.unit or "-", d.firmware or "-", f"[{style[d.verdict]}]{d.verdict}[/]",
+                  _failed_text(d), _seconds(d.elapsed(d.t_end or 0.0)))
+    return t
+
+
+def summary_line(devices: Sequence[Device], status: int) -> str:
+    counts = [f"{sum(d.verdict == v for d in devices)} {v}" for v in (CONFORMS, NOT_CONFORM, INCOMPLETE,
+                                                                       NOT_TESTED, INTERRUPTED)
+              if any(d.verdict == v for d in devices)]
+    untested = [d.target.url for d in devices if d.verdict == NOT_TESTED]
+    named = f"; not tested: {', '.join(untested)}" if untested else ""
+    return f"fleet of {len(devices)}: {', '.join(counts)}{named} (exit status {status})"
+
+
+# ---- the pages ----
+
+def write_pages(out_dir: Path, devices: Sequence[Device], status: int, started: _dt.datetime,
+                command: str) -> list[Path]:
+    from xac1_proto import __version__
+    from xac1_proto.pages import render
+
+    rows = [{
+        "port": d.target.url, "unit": d.unit, "firmware": d.firmware, "verdict": d.verdict,
+        "verdict_line": d.verdict_line, "reason": d.reason, "failed": d.failed, "safety": d.safety,
+        "duration": _seconds(d.elapsed(d.t_end or 0.0)), "status": d.status,
+        "report": d.report.name if d.report else None, "junit": d.junit.name,
+        "log": d.log.name if d.log else None,
+    } for d in devices]
+    ctx = {"title": "XA-C1 fleet conformance", "devices": rows, "status": status,
+           "summary": summary_line(devices, status), "started": started.strftime("%Y-%m-%d %H:%M:%S %Z"),
+           "command": command, "version": __version__, "worst": next((v for v in RANK if any(
+               d.verdict == v for d in devices)), CONFORMS)}
+    out = []
+    for name in ("fleet.html", "fleet.md"):
+        path = out_dir / name
+        path.write_text(render(f"{name}.j2", **ctx), encoding="utf-8")
+        out.append(path)
+    return out
+
+
+# ---- running it ----
+
+class _Stop:
+    """SIGINT/SIGTERM while the fleet runs: remembered, forwarded once to every child by the loop."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.repeated = False
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if self.signum is not None:
+            self.repeated = True
+        self.signum = signum
+
+    @contextlib.contextmanager
+    def installed(self) -> Iterator[None]:
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        old = {s: signal.signal(s, self) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+
+
+def _start(d: Device, sel: selectors.BaseSelector) -> None:
+    for old in (d.junit, d.report):  # a file left by an earlier run must not pass for this run's
+        if old is not None:
+            old.unlink(missing_ok=True)
+    read_fd, write_fd = os.pipe()
+    env = dict(os.environ)
+    env["PYTEST_PLUGINS"] = ",".join(p for p in (env.get("PYTEST_PLUGINS"), PROGRESS_PLUGIN) if p)
+    env["XAC1_FLEET_PROGRESS_FD"] = str(write_fd)
+    try:
+        d.proc = subprocess.Popen(d.argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, pass_fds=(write_fd,), env=env,
+                                  start_new_session=True)
+    finally:
+        os.close(write_fd)
+    d.t_start = time.monotonic()
+    assert d.proc.stdout is not None
+    os.set_blocking(read_fd, False)
+    sel.register(d.proc.stdout, selectors.EVENT_READ, (d, "out"))
+    sel.register(read_fd, selectors.EVENT_READ, (d, "progress"))
+    d.streams = 2
+
+
+def _pump(sel: selectors.BaseSelector, wait: float) -> None:
+    for key, _ in sel.select(timeout=wait):
+        d, kind = key.data
+        try:
+            data = os.read(key.fd, 65536)
+        except BlockingIOError:
+            continue
+        except OSError:
+            data = b""
+        if not data:
+            sel.unregister(key.fileobj)
+            if kind == "progress":
+                os.close(key.fd)
+            d.streams -= 1
+        elif kind == "out":
+            d.output += data
+        else:
+            d.progress(data)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Test every named device at once; the exit status of the worst (see the module docstring)."""
+    try:
+        ts = targets(args)
+        _check_options(args, ts)
+        out_dir = _writable_dir(args.report_dir) if args.report_dir else None
+    except FleetError as exc:
+        print(f"xac1 conformance: {exc}", file=sys.stderr)
+        return 2
+    from rich.console import Console
+
+    console = Console(highlight=False)
+    if not console.is_terminal:
+        console = Console(highlight=False, width=max(console.width, 160))
+    started = _dt.datetime.now().astimezone()
+    common = passthrough(args)
+    with contextlib.ExitStack() as stack:
+        files = out_dir or Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="xac1-fleet-")))
+        devices = []
+        for t, stem in zip(ts, file_names(ts), strict=True):
+            report = files / f"{stem}.{args.report_format}" if out_dir else None
+            junit = files / f"{stem}.xml"
+            argv = [sys.executable, "-m", "xac1_proto", "conformance", "--port", t.url, *common,
+                    "--junitxml", str(junit)]
+            if report:
+                argv += ["--report", str(report)]
+            if t.unit and _supports(args, "--unit-id"):
+                argv += ["--unit-id", t.unit]
+            devices.append(Device(t, stem, report, junit, files / f"{stem}.log" if out_dir else None, argv))
+        serials = _usb_serials()
+        for d in devices:
+            if "://" not in d.target.url or d.target.url.lower().startswith("hwgrep://"):
+                with contextlib.suppress(FleetError):
+                    d.unit = serials.get(_resolve(d.target.url))
+        stop = _Stop()
+        interrupted = _watch(devices, console, stop)
+        for d in devices:
+            if d.log:
+                d.log.write_bytes(bytes(d.output))
+            gather(d, interrupted)
+        status = fleet_status(devices, interrupted)
+        console.print(fleet_table(devices))
+        for d in devices:
+            for check, rule in d.failed if d.verdict == NOT_CONFORM else []:
+                console.print(f"  {d.target.url}: FAIL {check}: {rule}", markup=False)
+        if out_dir:
+            command = shlex.join(["xac1", "conformance", *(a for t in ts if t.where == "--port"
+                                                          for a in ("--port", t.url)),
+                                  *(["--ports", args.ports] if args.ports else []), *common,
+                                  "--report-dir", str(args.report_dir)])
+            pages = write_pages(out_dir, devices, status, started, command)
+            console.print(f"reports: {', '.join(str(p) for p in pages)} and one .{args.report_format}, .xml, "
+                          f".log a device in {out_dir}", markup=False)
+        if interrupted:
+            console.print("xac1 conformance: interrupted: every device was asked to stop and restore itself; "
+                          "see each device's verdict above", markup=False)
+        console.print(f"xac1 conformance: {summary_line(devices, status)}", markup=False)
+    return status
+
+
+def _watch(devices: Sequence[Device], console: Any, stop: _Stop) -> bool:
+    """Start every child, show their progress until all have ended; True when interrupted."""
+    from rich.live import Live
+
+    sel = selectors.DefaultSelector()
+    forwarded_at: float | None = None
+    told_repeat = False
+    live = Live(live_table(devices, time.monotonic()), console=console, refresh_per_second=4,
+                transient=False) if console.is_terminal else None
+    with stop.installed(), (live or contextlib.nullcontext()):
+        for d in devices:
+            _start(d, sel)
+            if live is None:
+                console.print(f"{d.target.url}: started ({d.stem})", markup=False)
+        while any(d.running for d in devices):
+            _pump(sel, 0.1)
+            now = time.monotonic()
+            for d in devices:
+                if d.running and d.streams == 0 and d.proc is not None and d.proc.poll() is not None:
+                    d.t_end, d.status = now, d.proc.returncode
+                    if live is None:
+                        console.print(f"{d.target.url}: {d.last_line()} ({_seconds(d.elapsed(now))})",
+                                      markup=False)
+            if stop.signum is not None and forwarded_at is None:
+                forwarded_at = now
+                console.print("xac1 conformance: stopping: each device finishes its restore "
+                              f"(at most {STOP_GRACE_S:g} s)", markup=False)
+                for d in devices:
+                    if d.running and d.proc is not None:
+                        with contextlib.suppress(ProcessLookupError):
+                            d.proc.send_signal(signal.SIGINT)
+            if stop.repeated and not told_repeat:
+                told_repeat = True
+                console.print("xac1 conformance: still waiting for the devices to be restored", markup=False)
+            if forwarded_at is not None and now - forwarded_at > STOP_GRACE_S:
+                for d in devices:
+                    if d.running and d.proc is not None:
+                        d.killed = True
+                        d.proc.kill()
+                forwarded_at = float("inf")
+            if live is not None:
+                live.update(live_table(devices, now))
+    sel.close()
+    return stop.signum is not None
