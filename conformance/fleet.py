@@ -53,7 +53,7 @@ CONFORMS, NOT_CONFORM, INCOMPLETE, NOT_TESTED, INTERRUPTED = (
     "CONFORMS", "DOES NOT CONFORM", "INCOMPLETE", "NOT TESTED", "INTERRUPTED")
 EXIT: Final = {CONFORMS: 0, NOT_CONFORM: 1, INCOMPLETE: 4, NOT_TESTED: 3, INTERRUPTED: 2}
 RANK: Final = (NOT_TESTED, NOT_CONFORM, INCOMPLETE, CONFORMS)
-FLEET_OWN: Final = frozenset({"port", "ports", "report_dir", "report_format", "report", "junitxml"})
+FLEET_OWN: Final = frozenset({"port", "ports", "report_dir", "report_format", "report", "junit"})
 PROGRESS_PLUGIN: Final = "conformance.fleet_progress"
 _VERDICT = re.compile(r"^xac1 conformance: (.*) \(exit status (-?\d+)\)\s*$")
 _FAILED = re.compile(r"^(?:FAIL|ERROR) (\S+): (.+)$")
@@ -198,7 +198,7 @@ def _check_options(args: argparse.Namespace, ts: Sequence[Target]) -> None:
     """The options each child will get, checked once here (the same errors a single run gives)."""
     from .settings import Settings, SettingsError
 
-    for flag, value in (("--report", args.report), ("--junitxml", args.junitxml)):
+    for flag, value in (("--report", args.report), ("--junit", args.junit)):
         if value:
             raise FleetError(f"{flag} names one file; with several ports use --report-dir DIR "
                              f"(DIR/<port>.html, DIR/<port>.xml, DIR/fleet.html)")
