@@ -4,9 +4,10 @@ timeout) and SIGHUP (the terminal or SSH session closed) all mean "stop, restore
 How it works: ``StopPolicy.install`` puts one handler on the three signals (main thread only). The
 first signal raises ``Interrupted`` (a ``KeyboardInterrupt``, so pytest ends the session as for Ctrl-C
 and the plugin restores the device and reports ``INCOMPLETE``, exit 2); every later signal is ignored
-and said so on stderr, so the restore and the report are never cut short. The shape follows
-``xac1_proto.signals.OrderlyEnd`` (the one policy of every long-running command): when that module is
-on main, ``StopPolicy`` becomes a thin use of it.
+and said so on stderr, so the restore and the report are never cut short. It is
+``xac1_proto.signals``' policy (the one of every long-running command: the same signals, the same
+``Interrupted``), shaped for a pytest session: the interrupt is raised where pytest runs, and the
+message goes to the process's own stderr, which pytest may have replaced.
 """
 
 from __future__ import annotations
@@ -19,23 +20,9 @@ import threading
 from types import FrameType
 from typing import Any
 
-SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+from xac1_proto.signals import SIGNALS, Interrupted, signal_name
 
-
-def signal_name(signum: int) -> str:
-    try:
-        return signal.Signals(signum).name
-    except ValueError:
-        return f"signal {signum}"
-
-
-class Interrupted(KeyboardInterrupt):
-    """A signal ended the run; ``name`` says which."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal_name(signum))
-        self.signum = signum
-        self.name = signal_name(signum)
+__all__ = ["SIGNALS", "Interrupted", "StopPolicy", "signal_name"]
 
 
 def _say(text: str) -> None:
