@@ -150,9 +150,10 @@ def test_other_silent_choices_still_pass_over_tcp(tmp_path):
         after = read_table(sim.url)
     assert r.returncode == 0, r.stdout[-4000:]
     skipped = skipped_checks(junit)
-    assert set(skipped) == {"test_estop_survives_reset", "test_move_beyond_stroke"}, skipped
+    # the emergency stop is a manual step on a real device; the move beyond the stroke is information
+    # only (outside the safe range it is not probed), so neither keeps the verdict from CONFORMS
+    assert set(skipped) == {"test_estop_survives_reset"}, skipped
     assert "stop input" in skipped["test_estop_survives_reset"]
-    assert "outside the safe range" in skipped["test_move_beyond_stroke"]
     assert r.stdout.splitlines()[-1].startswith("xac1 conformance: CONFORMS: ")
     assert " 0 failed, 1 skipped (of " in r.stdout.splitlines()[-1]  # the information check is not counted
     assert after == before

@@ -378,10 +378,10 @@ def test_bad_input_stops_before_anything_is_sent(case, quiet_sim, tmp_path):
 def test_single_port_path_is_unchanged(tmp_path):
     """One --port (no --ports, no --report-dir) runs the suite in-process exactly as before: its own
     summary and verdict line, no fleet table."""
-    r = fleet(["--port", "xac1sim://", "-k", "version"], tmp_path, timeout=60)
-    assert r.returncode == 0, r.stdout[-3000:]
-    assert "XA-C1 conformance" in r.stdout and "XA-C1 fleet" not in r.stdout
-    assert r.stdout.splitlines()[-1].startswith("xac1 conformance: CONFORMS")
+    r = fleet(["--port", "xac1sim://", "-k", "version", "--allow-incomplete"], tmp_path, timeout=60)
+    assert r.returncode == 0, r.stdout[-3000:]  # -k leaves checks out: deliberately partial
+    assert "xac1 conformance: testing xac1sim://" in r.stdout and "XA-C1 fleet" not in r.stdout
+    assert r.stdout.splitlines()[-1].startswith("xac1 conformance: INCOMPLETE")
 
 
 # ---- how a device's result is read, and the fleet's exit status ----
