@@ -246,6 +246,11 @@ class Conversation:
         return bool(self._queue)
 
     @property
+    def expecting_answer(self) -> bool:
+        """Does a well-formed command (not an error, not a line discarded during a move) wait?"""
+        return self._motion is not None or any(w.kind == _COMMAND for w in self._queue)
+
+    @property
     def moving(self) -> bool:
         """Is a move's answer awaited?"""
         return self._motion is not None
@@ -448,7 +453,7 @@ class Conversation:
             return None, []
         sent = [w for w in self._queue if t is None or w.t_last is None or w.t_last <= t]
         chosen: _Line | None = None
-        if header is not None and header not in (spec.ALARM_HEADER, spec.RESET_HEADER):
+        if header is not None and header != spec.ALARM_HEADER:
             chosen = next((w for w in sent if w.header == header
                            and (w.kind != _DISCARD or len(self._queue) == 1)), None)
         if chosen is None:
