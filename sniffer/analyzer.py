@@ -122,11 +122,12 @@ class Analyzer:
     def _event(self, direction: str, event: FrameBytes | Junk) -> list[Record]:
         c = self.conversation
         junk = isinstance(event, Junk)
-        if direction == HOST:
-            judge = c.host_junk if junk else c.host_frame
+        if isinstance(event, Junk) and direction == DEVICE:  # a flushed partial line may be an answer
+            verdicts = c.device_junk(event.raw, event.t_first, event.t_last, event.reason == "flushed")
+        elif direction == HOST:
+            verdicts = (c.host_junk if junk else c.host_frame)(event.raw, event.t_first, event.t_last)
         else:
-            judge = c.device_junk if junk else c.device_frame
-        verdicts = judge(event.raw, event.t_first, event.t_last)
+            verdicts = c.device_frame(event.raw, event.t_first, event.t_last)
         errors = self._line_errors(direction, event.offset, len(event.raw))
         reason = event.reason if isinstance(event, Junk) else ""
         return self._records(verdicts, errors, reason)

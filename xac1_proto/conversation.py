@@ -301,9 +301,10 @@ class Conversation:
 
     # ---- events ----
 
-    def host_frame(self, raw: bytes, t_first: float | None = None,
-                   t_last: float | None = None) -> list[Verdict]:
-        """A frame-shaped host line (from a frame start to LF)."""
+    def host_frame(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
+                   window: float | None = None) -> list[Verdict]:
+        """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
+        for its answer, when it says so (the client); else the engine's answer window."""
         out = self._time(t_first)
         i = self._number()
         frame, violations = diagnose(raw, spec.COMMAND)
@@ -312,7 +313,7 @@ class Conversation:
         error = frame is None or _is_error(violations)
         found += self._host_duties(header, error)
         line = self._enqueue(i, _ERROR if error else _COMMAND, header, None if error else frame,
-                             t_first, t_last, found)
+                             t_last, found, window)
         if line.is_move and self.knowledge.latched.value is None and self._motion is None \
                 and line.kind == _COMMAND and not line.overlapped:
             self._motion = line
@@ -320,8 +321,8 @@ class Conversation:
                            t=t_first, t_last=t_last))
         return out
 
-    def host_junk(self, raw: bytes, t_first: float | None = None,
-                  t_last: float | None = None) -> list[Verdict]:
+    def host_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
+                  window: float | None = None) -> list[Verdict]:
         """Host bytes that form no frame. A run ending in LF is a line the device must answer as an
         error (docs/protocol.md "Behaviour the vendor text states")."""
         out = self._time(t_first)
@@ -329,7 +330,7 @@ class Conversation:
         found = [Violation("garbage", 0, f"{len(raw)} host bytes that form no frame: {show_bytes(raw)} "
                            f"(garbage)")]
         if raw.endswith(b"\n"):
-            self._enqueue(i, _ERROR, None, None, t_first, t_last, found)
+            self._enqueue(i, _ERROR, None, None, t_last, found, window)
         out.append(Verdict("host-junk", HOST, i, bytes(raw), violations=tuple(found), t=t_first,
                            t_last=t_last))
         return out
@@ -356,9 +357,11 @@ class Conversation:
                            None if line is None else line.i, latency, t_first, t_last))
         return out
 
-    def device_junk(self, raw: bytes, t_first: float | None = None,
-                    t_last: float | None = None) -> list[Verdict]:
-        """Device bytes that form no frame; inside the head line's answer window, its garbled answer."""
+    def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
+                    line_ended: bool = False) -> list[Verdict]:
+        """Device bytes that form no frame. A whole garbled line (ending in LF, or ``line_ended``: a
+        partial line the device never finished) inside the head line's answer window is its garbled
+        answer; bytes before a frame start are noise, never an answer."""
         out = self._time(t_first, answer=True)
         self._answer_since = None
         i = self._number()
@@ -366,7 +369,8 @@ class Conversation:
                            f"{show_bytes(raw)} (garbage)")]
         head = self._queue[0] if self._queue else None
         line = None
-        if head is not None and head.kind != _DISCARD and (
+        whole = raw.endswith(b"\n") or line_ended
+        if whole and head is not None and head.kind != _DISCARD and (
                 t_first is None or head.deadline is None or t_first <= head.deadline):
             line = self._queue.popleft()
             self._end_motion(line)
@@ -403,6 +407,18 @@ class Conversation:
         self._queue = keep
         return out
 
+    def host_gave_up(self, now: float | None = None) -> list[Verdict]:
+        """The host stopped waiting (the client's timeout): every line still owed an answer is
+        ``no-answer`` now."""
+        out = []
+        while self._queue:
+            w = self._queue.popleft()
+            self._end_motion(w)
+            self._outcome_unknown(w)
+            if w.owed:
+                out.append(self._no_answer(w, now))
+        return out
+
     def cut_short(self) -> int:
         """Lines still owed an answer whose window had not closed when the data ended; forgets them."""
         n = sum(1 for w in self._queue if w.owed)
@@ -422,8 +438,8 @@ class Conversation:
             return []
         return self.tick(t, t if answer else self._answer_since)
 
-    def _enqueue(self, i: int, kind: str, header: str | None, frame: Frame | None, t_first: float | None,
-                 t_last: float | None, found: list[Violation]) -> _Line:
+    def _enqueue(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
+                 found: list[Violation], window: float | None = None) -> _Line:
         """Queue a host line, judging when it was sent (docs/protocol.md "Framing": strict request/answer)."""
         what = header or "this line"
         overlapped = False
@@ -442,6 +458,8 @@ class Conversation:
                 found.append(_v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
         is_move = kind == _COMMAND and header in spec.MOVE_HEADERS and frame is not None
         waited = self.answer_window(frame) if is_move and frame is not None else self.no_answer_timeout
+        if window is not None:
+            waited = window
         line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + waited, waited,
                      overlapped, is_move)
         self._queue.append(line)
