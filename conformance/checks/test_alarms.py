@@ -71,6 +71,7 @@ def test_estop_survives_reset(xac1_dut):
         pytest.skip("emergency stop comes from the device's stop input, not the line: check by hand (press "
                     "the stop, send 0%C, expect 0%%0E)")
     sim.set_estop(True)
+    xac1_dut.client.conversation.stop_input(True)  # the rulebook knows the stop input here
     try:
         first = xac1_dut.send(ReadVersion())
         expect(first.alarm is not None and first.alarm.code == spec.ALARM_ESTOP,
@@ -83,5 +84,6 @@ def test_estop_survives_reset(xac1_dut):
                first, r, after)
     finally:
         sim.set_estop(False)
+        xac1_dut.client.conversation.stop_input(False, unhomes=sim.config.estop_rehome)
         xac1_dut.latched = None  # the next check resets whatever is left
         xac1_dut.budget.homed = None
