@@ -31,7 +31,7 @@ XAC1 = [sys.executable, "-m", "xac1_proto"]
 # axis at 0. Both are caught where those facts are known (tests/test_conversation_sim.py).
 INVISIBLE = {"estop-cleared", "rc-before-homing-not-ffffff"}
 SUITE = ["--allow-motion", "--safe-range", "0:0x1000", "--scratch-points", "1,2,3,4,5", "--fresh",
-         "--examples", "3"]
+         "--examples", "3", "--timeout", "0.3"]  # a silent device costs a timeout a probe
 
 
 def _free_port() -> int:

@@ -23,6 +23,30 @@ times, order cannot tell it from the first line left unanswered: the verdict say
 line itself is not owed an answer. A line sent during a move is ``command-during-motion`` and is
 discarded by the device (silent item 10).
 
+The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].side(sender)``):
+
+| code | on | rule (docs/protocol.md) |
+|---|---|---|
+| framing codes | the frame | ``codec.diagnose``: the frame table ("Framing", "Fields", "Frames") |
+| ``overlapping-command`` | host line | sent while an earlier line is owed its answer ("Framing") |
+| ``command-during-motion`` | host line | sent while a move's answer is awaited ("Behaviour") |
+| ``alarm-ignored`` | host line | not a well-formed 0%C after an alarm answer ("Behaviour": latch) |
+| ``comm-error-storm`` | host line | the storm run reached the limit (host duty): the run counts ``0%%01``
+  answers, the reset answer neither counts nor ends it, any other answer ends it |
+| ``no-answer`` | its own verdict | a line's window closed, or a later line was answered ("Behaviour") |
+| ``error-accepted`` | answer | a normal answer to an error ("Behaviour": errors get ``0%%Ec``) |
+| ``answer-mismatch`` | answer | another command's answer, or another N ("Frames") |
+| ``echo-mismatch`` | answer | an echo with other field values; case alone is the notice ("Behaviour") |
+| ``latch-broken`` | answer | a normal answer while an alarm is latched; a latched code changing to
+  another than 0E; a reset (0%C) answered with an alarm other than 0E: the reset did not work ("Behaviour":
+  latch and reset; our choice of code for the failed reset) |
+| ``estop-cleared`` | answer | 0%C00 while the stop input is *known* pressed (silent item 3) |
+| ``readback-mismatch`` | answer | a point (0WP, 0WC, an earlier 0RP), the OUT ports (0WS, an earlier
+  0RS), the position (0MV, 0MP N to a known point, an earlier 0RC), the version read back otherwise; 0RC
+  answering a position while the axis is known not homed ("Behaviour": 0RC before homing) |
+| ``unsolicited-answer`` | answer | nothing waits for it ("Violation codes") |
+| ``garbage`` | junk | bytes that form no frame ("Framing") |
+
 Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a command): a command
 refused with an alarm takes no effect (silent item 18); a garbled, missing or faulty answer makes what
 the command would have changed unknown. What docs/protocol.md leaves open is never judged: it becomes
@@ -282,8 +306,9 @@ class Conversation:
     def stop_input(self, pressed: bool, *, unhomes: bool = False) -> None:
         """The emergency stop input, as a caller that drives it knows (the simulator). Pressed: alarm
         0E latches and a move stops where it is (silent item 19). Released: 0E clears (silent item 3);
-        ``unhomes``: the caller knows the axis must be homed again."""
+        ``unhomes``: the caller knows the axis must then be homed again (when the stop was on)."""
         k = self.knowledge
+        was_on = k.stop_pressed.value is True or k.latched.value == spec.ALARM_ESTOP
         k.stop_pressed = Fact(pressed, KNOWN)
         if pressed:
             k.latched = Fact(spec.ALARM_ESTOP, KNOWN)
@@ -291,7 +316,7 @@ class Conversation:
             return
         if k.latched.value == spec.ALARM_ESTOP:
             k.latched = Fact(None, KNOWN)
-        if unhomes:
+        if unhomes and was_on:  # a release of a stop that was not on changes nothing
             k.homed, k.position = Fact(False, KNOWN), Fact()
 
     def move_finished(self, now: float) -> None:
