@@ -186,3 +186,17 @@ def test_budget_forgets_after_alarm_and_estop():
     assert budget.position is None and budget.homed
     budget.observe(fr.ReadVersion(), fr.AlarmAnswer(code=spec.ALARM_ESTOP), clean=True)
     assert budget.homed is False
+
+
+def test_malformed_move_gets_the_plain_timeout():
+    """Regression: a malformed 0MV (vel 00) is no move, so a silent device costs the plain timeout, not
+    a move priced at speed 0 (found by the cross-check against a device silent to malformed commands)."""
+    import time
+
+    from xac1_proto import ResponseTimeout
+
+    with Client("xac1sim://?time_scale=0&deviation=silent-on-malformed", timeout=0.2, drain_quiet=0.01) as c:
+        start = time.monotonic()
+        with pytest.raises(ResponseTimeout):
+            c.transact(b"0MV0030004AB\r\n")
+        assert time.monotonic() - start < 2.0

@@ -106,6 +106,7 @@ class Client:
         self.conversation = Conversation(no_answer_timeout=timeout,
                                          storm_limit=storm_limit or spec.STORM_LIMIT, speeds=speeds)
         self._budget = MoveBudget(speeds, stroke)
+        self._read_t = 0.0
         self._lock = threading.RLock()
         self._serial, self._owned = open_port(port)
 
@@ -156,7 +157,9 @@ class Client:
         """Send any bytes (even a malformed command) and return the answer as the device sent it,
         decoded leniently with its violations. Raises only ``ResponseTimeout`` (no frame-shaped
         answer in time) and ``CommunicationHalted``; the answers still count for the storm guard."""
-        command, _ = diagnose(raw, spec.COMMAND)
+        command, violations = diagnose(raw, spec.COMMAND)
+        if any(v.code not in spec.NOTICES for v in violations):
+            command = None  # a malformed command is no move: it gets the plain timeout (e.g. 0MV vel 00)
         return self._exchange(bytes(raw), command, timeout)
 
     def _exchange(self, raw: bytes, command: Frame | None, timeout: float | None) -> Exchange:
@@ -220,8 +223,9 @@ class Client:
 
     def _read_chunk(self) -> bytes:
         data = self._serial.read(max(1, self._serial.in_waiting))
+        self._read_t = self.clock()  # one time for the traffic hook and the framer
         if data:
-            self._traffic("device", data, self.clock())
+            self._traffic("device", data, self._read_t)
         return data
 
     def _read_waiting(self) -> bytes:
@@ -241,7 +245,7 @@ class Client:
             if not data:
                 continue
             received += data
-            for i, event in enumerate(events := framer.feed(data, self.clock())):
+            for i, event in enumerate(events := framer.feed(data, self._read_t)):
                 if isinstance(event, Junk):
                     junk += event.raw
                     continue
