@@ -30,6 +30,14 @@ XAC1 = [sys.executable, "-m", "xac1_proto"]
 # cannot know the device was just powered on, so a 0RC answering 000000 before homing looks like a homed
 # axis at 0. Both are caught where those facts are known (tests/test_conversation_sim.py).
 INVISIBLE = {"estop-cleared", "rc-before-homing-not-ffffff"}
+# the code each deviation must be named with (on the device side)
+EXPECTED = {
+    "alarm-not-latched": {"latch-broken"}, "echo-differs": {"echo-mismatch"}, "letter-o": {"letter-o"},
+    "lf-only": {"bad-terminator"}, "move-not-performed": {"readback-mismatch"}, "no-2": {"missing-2"},
+    "outputs-not-stored": {"readback-mismatch"}, "silent-on-malformed": {"no-answer"},
+    "swapped-fields": {"readback-mismatch", "field-range"}, "write-not-stored": {"readback-mismatch"},
+    "wrong-length": {"bad-length"}, "wrong-n": {"answer-mismatch"}, "wrong-reset-answer": {"field-range"},
+}
 SUITE = ["--allow-motion", "--safe-range", "0:0x1000", "--scratch-points", "1,2,3,4,5", "--fresh",
          "--examples", "3", "--timeout", "0.3"]  # a silent device costs a timeout a probe
 
@@ -132,8 +140,14 @@ def test_clean_simulator_gets_no_device_side_verdict(tmp_path):
     assert found == [], [(code, r.get("details")) for code, r in found][:5]
 
 
-@pytest.mark.parametrize("deviation", sorted(set(DEVIATIONS) - INVISIBLE))
+def test_the_lists_cover_every_deviation():
+    """Every deviation is either expected on the line (with its code) or listed as invisible."""
+    assert set(EXPECTED) | INVISIBLE == set(DEVIATIONS) and not set(EXPECTED) & INVISIBLE
+
+
+@pytest.mark.parametrize("deviation", sorted(EXPECTED))
 def test_every_visible_deviation_is_named_on_the_device_side(tmp_path, deviation):
     """Each deviation the line can show gets at least one device-side violation in the decoded recording."""
     records = _record(tmp_path, deviation)
-    assert _device_side(records), f"{deviation}: no device-side violation in {len(records)} records"
+    found = {code for code, _ in _device_side(records)}
+    assert found & EXPECTED[deviation], f"{deviation}: device-side {sorted(found)} in {len(records)} records"
