@@ -1,6 +1,7 @@
 """Evidence: what one probe put on the line and got back, and how a check states a broken rule.
 
-Every byte the suite sends goes through ``DeviceUnderTest.probe`` and becomes a ``Probe``; a check that
+Every byte the suite sends goes through ``DeviceUnderTest.probe`` and becomes a ``Probe``, judged by the
+client's conversation engine (the one rulebook: ``Probe.violations`` are its verdict); a check that
 finds a rule broken raises ``RuleBroken`` with the probes that show it, so the report can print the
 exact bytes sent and received next to the verdict.
 """
@@ -93,13 +94,15 @@ class Probe:
         return self.frame is not None and self.alarm is None
 
     def echoes(self) -> bool:
-        """The answer carries the command's header and fields (framing flaws aside)."""
-        from xac1_proto.codec import diagnose
+        """The answer is its command's echo, as the rulebook judges it (``xac1_proto.conversation``: the
+        same header and field values; framing flaws aside, the framing checks judge those)."""
+        mismatch = {"echo-mismatch", "answer-mismatch", "error-accepted"}
+        return self.answered and not any(v.code in mismatch for v in self.violations) \
+            and self.frame is not None and self.frame.header == self.command_header
 
-        command, _ = diagnose(self.sent, spec.COMMAND)
-        frame = self.frame
-        return (self.answered and command is not None and frame is not None
-                and frame.header == command.header and frame.fields() == command.fields())
+    @property
+    def command_header(self) -> str:
+        return self.sent[: spec.HEADER_WIDTH].decode("ascii", "replace")
 
     def show(self) -> str:
         got = show_bytes(self.raw) if self.raw else f"no answer{self._partial()}"

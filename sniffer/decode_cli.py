@@ -285,7 +285,7 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False)
         from .report import ReportError, SessionReport
         try:
             html_report = SessionReport.open(args.report, [(s.name, capture.format) for s in capture.sources],
-                                             analyzer.no_answer_timeout)
+                                             analyzer.conversation.no_answer_timeout)
         except ReportError as exc:
             return _error(str(exc))
     view = make_view("text" if args.format == "summary" else args.format, sys.stdout, args.color)

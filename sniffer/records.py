@@ -3,7 +3,9 @@
 The records serialise to the pinned JSON lines schema (README "Sniffer"): ``FrameRecord`` ->
 ``{"type":"frame",...}``, ``JunkRecord`` -> ``{"type":"junk",...}``, ``TimeoutRecord`` ->
 ``{"type":"timeout",...}`` (the one violation that no frame carries: ``no-answer``), and the ``Tally``
-that counts them gives the last line, ``{"type":"summary",...}``. Records are inert data; the analyzer
+that counts them gives the last line, ``{"type":"summary",...}``. Every record's ``sides`` lists, aligned
+with ``violations``, whose fault each is (``host`` or ``device``: ``spec.VIOLATION_TABLE[code].side``);
+the summary counts violations by side too (``by_side``). Records are inert data; the analyzer
 builds them and the views print them.
 """
 
@@ -57,6 +59,8 @@ class FrameRecord:
     latency_s: float | None = None
     t_last: float | None = None
     line_errors: tuple[str, ...] = ()
+    sides: tuple[spec.Side, ...] = ()
+    window_s: float | None = None  # host frames: the answer window the rulebook gave it (not in JSON)
 
     type = "frame"
 
@@ -71,7 +75,7 @@ class FrameRecord:
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"type": "frame", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
                                "raw": self.raw.hex(), "header": self.header, "fields": self.fields,
-                               "violations": list(self.violations)}
+                               "violations": list(self.violations), "sides": _sides(self)}
         if self.dir == "device":
             out["reply_to"] = self.reply_to
             out["latency_ms"] = self.latency_ms
@@ -94,13 +98,19 @@ class JunkRecord:
     violations: tuple[spec.ViolationCode, ...] = ("garbage",)
     details: tuple[str, ...] = ()
     line_errors: tuple[str, ...] = ()
+    sides: tuple[spec.Side, ...] = ()
+    reply_to: int | None = None  # device junk inside a command's answer window: its garbled answer
+    latency_s: float | None = None
 
     type = "junk"
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"type": "junk", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
                                "raw": self.raw.hex(), "violations": list(self.violations),
-                               "reason": self.reason}
+                               "sides": _sides(self), "reason": self.reason}
+        if self.reply_to is not None:
+            out["reply_to"] = self.reply_to
+            out["latency_ms"] = _ms(self.latency_s)
         return _with_notes(out, self.details, self.line_errors)
 
     def to_json(self) -> str:
@@ -120,13 +130,14 @@ class TimeoutRecord:
     details: tuple[str, ...] = ()
     violations: tuple[spec.ViolationCode, ...] = ("no-answer",)
     dir: Direction = "host"
+    sides: tuple[spec.Side, ...] = ()
 
     type = "timeout"
 
     def to_dict(self) -> dict[str, Any]:
         return {"type": "timeout", "t": _round_t(self.t), "dir": self.dir, "command": self.command,
                 "header": self.header, "waited_ms": _ms(self.waited_s),
-                "violations": list(self.violations), "details": list(self.details)}
+                "violations": list(self.violations), "sides": _sides(self), "details": list(self.details)}
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), separators=(",", ":"))
@@ -136,6 +147,20 @@ Record = FrameRecord | JunkRecord | TimeoutRecord
 
 
 _MAX_LATENCY_S = 1e6  # a latency beyond this comes from damaged times and is not counted
+
+
+def sides_of(record: Record) -> tuple[spec.Side, ...]:
+    """Whose fault each violation of ``record`` is, aligned with ``record.violations``."""
+    if len(record.sides) == len(record.violations):
+        return record.sides
+    sender: spec.Side = "device" if record.dir == "device" else "host"
+    return tuple(spec.VIOLATION_TABLE[c].side(sender) for c in record.violations)
+
+
+def _sides(record: Record) -> list[str]:
+    return list(sides_of(record))
+
+
 _MAX_WAITING = 4096  # commands the tally remembers while they wait for an answer
 
 
@@ -176,6 +201,7 @@ class Tally:
     junk: int = 0
     bytes: Counter[str] = field(default_factory=Counter)  # by direction, frames and junk
     violations: Counter[str] = field(default_factory=Counter)
+    by_side: dict[str, Counter[str]] = field(default_factory=lambda: {"host": Counter(), "device": Counter()})
     commands: Counter[str] = field(default_factory=Counter)  # host frames by header ("?" unknown)
     answers: Counter[str] = field(default_factory=Counter)  # device frames by header
     latencies: dict[str, LatencyStats] = field(default_factory=dict)  # by command header
@@ -185,6 +211,8 @@ class Tally:
 
     def add(self, record: Record) -> None:
         self.violations.update(record.violations)
+        for code, side in zip(record.violations, sides_of(record), strict=True):
+            self.by_side[side][code] += 1
         if isinstance(record, FrameRecord):
             self.frames[record.dir] += 1
             self.bytes[record.dir] += len(record.raw)
@@ -217,6 +245,8 @@ class Tally:
                 "frames": {"host": self.frames["host"], "device": self.frames["device"]},
                 "junk": self.junk,
                 "violations": dict(ordered),
+                "by_side": {side: {c: self.by_side[side][c] for c, _ in ordered if self.by_side[side][c]}
+                            for side in ("host", "device")},
                 "bytes": {"host": self.bytes["host"], "device": self.bytes["device"]},
                 "commands": dict(sorted(self.commands.items())),
                 "answers": dict(sorted(self.answers.items())),

@@ -18,7 +18,7 @@ from rich.markup import escape
 
 from xac1_proto import spec
 
-from .records import FrameRecord, JunkRecord, Record, TimeoutRecord, summary_json
+from .records import FrameRecord, JunkRecord, Record, TimeoutRecord, sides_of, summary_json
 
 FORMATS = ("text", "jsonl")
 _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
@@ -76,7 +76,7 @@ class TextView:
         when = show_time(record.t)
         if isinstance(record, TimeoutRecord):
             waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
-            return (f"{when}       [bold red]host   ✗ no answer to #{record.command} "
+            return (f"{when}       [bold red]device ✗ no answer to #{record.command} "
                     f"({record.header or 'unknown'}){waited}[/]")
         arrow = "→" if record.dir == "host" else "←"
         colour = "cyan" if record.dir == "host" else "green"
@@ -102,17 +102,18 @@ class TextView:
 
 
 def violation_lines(record: Record) -> list[str]:
-    """One line per violation code of a record: code, docs/protocol.md meaning, the detail."""
+    """One line per violation code of a record: whose fault, code, docs/protocol.md meaning, the detail
+    (``host ✗ letter-o: ...``)."""
     out = []
     details = list(record.details)
-    for code in record.violations:
+    for code, side in zip(record.violations, sides_of(record), strict=True):
         severity, meaning = spec.VIOLATIONS[code]
         colour = "yellow" if severity == spec.NOTICE else "red"
         suffix = f" ({code})"
         mine = [d.removesuffix(suffix) for d in details if d.endswith(suffix)]
         detail = "; ".join(mine)
         mark = "!" if severity == spec.NOTICE else "✗"
-        out.append(f"      [{colour}]{mark} {code}[/]: {escape(meaning)}"
+        out.append(f"      [{colour}]{side:<6} {mark} {code}[/]: {escape(meaning)}"
                    + (f" [dim]— {escape(detail)}[/]" if detail else ""))
     return out
 
@@ -140,12 +141,15 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
                 shown = f"{spread} ({stats['n']} {plural})"
             lines.append(f"  {escape(header):<7}  {count:>6}  {shown}")
     violations = summary.get("violations", {})
+    by_side = summary.get("by_side", {})
     if not violations:
         lines.append("  [green]no violations[/]")
     for code, count in violations.items():
         severity, meaning = spec.VIOLATIONS[code]
         colour = "yellow" if severity == spec.NOTICE else "red"
-        lines.append(f"  [{colour}]{code}[/] x{count}: {escape(meaning)}")
+        sides = ", ".join(f"{side} {by_side[side][code]}" for side in ("host", "device")
+                          if by_side.get(side, {}).get(code))
+        lines.append(f"  [{colour}]{code}[/] x{count}{f' ({sides})' if sides else ''}: {escape(meaning)}")
     return lines
 
 

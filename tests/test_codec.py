@@ -14,7 +14,8 @@ from xac1_proto import spec
 STRICT_ERRORS = [
     (b"ORP3\r\n", "command", "letter-o", 0),
     (b"0XY3\r\n", "command", "unknown-command", 1),
-    (b"0rp3\r\n", "command", "unknown-command", 1),
+    (b"0rp3\r\n", "command", "lowercase-hex", 1),  # read as 0RP with the notice; strict rejects it
+    (b"0xp3\r\n", "command", "unknown-command", 1),
     (b"0%%\r\n", "command", "unknown-command", 2),
     (b"0RP33\r\n", "command", "bad-length", 6),
     (b"0RP\r\n", "command", "bad-length", 5),
@@ -152,3 +153,15 @@ def test_header_plus_arbitrary_tail_never_escapes_frame_error(key, tail):
         assert x.parse(data, role) == frame
     except x.FrameError as exc:
         assert exc.violation in violations
+
+
+def test_lowercase_header_read_leniently_as_its_command():
+    """A header in lower case (``0rv``) is read as its command with the ``lowercase-hex`` notice, as a
+    letter O is read as the digit with ``letter-o`` (docs/protocol.md "Framing")."""
+    frame, violations = x.diagnose(b"0rv\r\n", "command")
+    assert frame == x.ReadVersion() and [v.code for v in violations] == ["lowercase-hex"]
+    frame, violations = x.diagnose(b"Owp19302012345\r\n", "command")
+    assert frame is not None and frame.header == "0WP"
+    assert [v.code for v in violations] == ["letter-o", "lowercase-hex"]
+    frame, violations = x.diagnose(b"0%c00\r\n", "answer")
+    assert frame == x.AlarmResetAnswer() and [v.code for v in violations] == ["lowercase-hex"]

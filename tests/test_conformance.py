@@ -8,13 +8,15 @@ import sys
 import pytest
 from conftest import conformance
 
-from conformance.model import Model, Point
+from conformance.evidence import Probe
+from conformance.model import Model
 from conformance.settings import Settings, SettingsError, parse_safe_range
-from xac1_proto import parse, spec
+from xac1_proto import spec
 from xac1_proto.frames import (
     AlarmReset,
     MoveDirect,
     ReadCurrent,
+    ReadOutputs,
     ReadPoint,
     WriteOutputs,
 )
@@ -42,50 +44,40 @@ def test_motion_on_hardware_needs_a_safe_range():
     assert sim.time_scale == 0  # the default port runs motion instantly
 
 
-def _model() -> Model:
-    return Model(points={n: Point(0, 0, 0, 0) for n in range(1, 16)}, outputs=0, homed=False)
+def _probes(deviation: str | None = None):
+    """A model on a client of the in-process simulator, and a way to probe it."""
+    from xac1_proto import Client
+
+    url = "xac1sim://?time_scale=0" + (f"&deviation={deviation}" if deviation else "")
+    client = Client(url, timeout=0.5)
+    model = Model(client.conversation)
+    return client, model, lambda frame: Probe(None, client.transact(frame.to_bytes()))
 
 
-def _answer(raw: bytes):
-    return parse(raw, spec.ANSWER)
+def test_model_is_the_rulebook_and_accepts_the_stated_answers():
+    """The model is the client's conversation engine: the simulator's stated answers (0RC before homing,
+    an echo, a latched alarm and its reset) get no verdict (docs/protocol.md "Behaviour the vendor text
+    states")."""
+    client, m, probe = _probes()
+    with client:
+        for frame in (ReadCurrent(), WriteOutputs(o=2), ReadPoint(n=1), AlarmReset()):
+            assert m.judge(probe(frame)) == []
+        assert m.judge(Probe(None, client.transact(b"0XY\r\n"))) == []  # an alarm answer, as owed
+        assert m.latched == spec.ALARM_COMM
+        assert m.judge(probe(AlarmReset())) == [] and m.latched is None
 
 
-def test_model_accepts_the_stated_answers():
-    """The reference model accepts 0RC before homing, an echo, a latched alarm and its reset
-    (docs/protocol.md "Behaviour the vendor text states")."""
-    m = _model()
-    assert m.judge(ReadCurrent(), _answer(b"0RC00002FFFFFF\r\n"), b"0RC00002FFFFFF\r\n", []) == []
-    assert m.judge(WriteOutputs(o=2), _answer(b"0WS22\r\n"), b"0WS22\r\n", []) == []
-    assert m.judge(b"0XY\r\n", _answer(b"0%%01\r\n"), b"0%%01\r\n", []) == []
-    assert m.judge(ReadPoint(n=1), _answer(b"0%%01\r\n"), b"0%%01\r\n", []) == []
-    assert m.judge(AlarmReset(), _answer(b"0%C00\r\n"), b"0%C00\r\n", []) == []
-    assert m.latched is None
-
-
-def one_problem(problems: list[str], *words: str) -> str:
-    """The single broken rule reported, checked to name it by these words."""
-    assert len(problems) == 1, problems
-    assert all(w in problems[0] for w in words), (words, problems[0])
-    return problems[0]
-
-
-def test_model_names_broken_rules():
-    """The reference model reports a broken latch, a wrong 0RC before homing, a position that a move did
-    not reach and a differing echo, each as exactly one problem naming that rule; silent points (0RC's
-    O) are not judged."""
-    m = _model()
-    one_problem(m.judge(ReadCurrent(), _answer(b"0RC00002000000\r\n"), b"", []),
-                "0RC before homing", "FFFFFF")
-    assert m.judge(b"0XY\r\n", _answer(b"0%%01\r\n"), b"", []) == []  # malformed: alarm 01 latched
-    one_problem(m.judge(ReadPoint(n=1), _answer(b"0RP10002000000\r\n"), b"", []),
-                "alarm 01 is latched", "0RP")
-    m = _model()
-    move = MoveDirect(vel=0x3C, a=3, pos=0x100)
-    assert m.judge(move, _answer(move.to_bytes()), move.to_bytes(), []) == []
-    assert m.judge(ReadCurrent(), _answer(b"0RC00332000100\r\n"), b"", []) == []  # N/V/A/O: silent
-    one_problem(m.judge(ReadCurrent(), _answer(b"0RC00002000200\r\n"), b"", []), "000200", "000100")
-    wrong = b"0WS32\r\n"
-    one_problem(m.judge(WriteOutputs(o=2), _answer(wrong), wrong, []), "0WS echo differs")
+@pytest.mark.parametrize("deviation, code", [("move-not-performed", "readback-mismatch"),
+                                             ("outputs-not-stored", "readback-mismatch"),
+                                             ("echo-differs", "echo-mismatch")])
+def test_model_names_broken_rules(deviation, code):
+    """A position a move did not reach, OUT ports not stored, a differing echo: the engine's verdict."""
+    client, m, probe = _probes(deviation)
+    with client:
+        verdicts = []
+        for frame in (MoveDirect(vel=0x3C, a=3, pos=0x100), ReadCurrent(), WriteOutputs(o=2), ReadOutputs()):
+            verdicts += m.judge(probe(frame))
+        assert verdicts and all(v.endswith(f"({code})") for v in verdicts)
 
 
 @pytest.mark.slow

@@ -44,7 +44,7 @@ def test_clean_exchange_pairs_and_measures_latency():
     assert line == {"type": "frame", "i": 1, "t": 10.0025, "dir": "device",
                     "raw": b"0RP39302012345\r\n".hex(), "header": "0RP",
                     "fields": {"n": 3, "v": 9, "a": 3, "o": 0, "pos": 0x12345},
-                    "violations": [], "reply_to": 0, "latency_ms": 2.5}
+                    "violations": [], "sides": [], "reply_to": 0, "latency_ms": 2.5}
 
 
 def test_letter_o_then_alarm_then_no_reset():
@@ -148,37 +148,40 @@ def test_storm_after_fifth_comm_error():
     assert all_codes([r for r in recs if r.dir == D]) == []
 
 
-def test_latch_broken_and_estop_cleared():
-    """A normal answer while a non-estop alarm is latched is latch-broken; 0%C00 while emergency stop is
-    latched is estop-cleared; a normal answer under emergency stop means the input was released
-    (docs/protocol.md silent item 3)."""
+def test_latch_broken_and_estop_recovery_seen_from_the_line():
+    """A normal answer while a non-estop alarm is latched is latch-broken. 0%C00 after emergency stop is a
+    normal recovery on the line alone: the release of the stop input cannot be seen, so estop-cleared is
+    never judged from the line (docs/protocol.md silent item 3); nor is a normal answer under 0E."""
     recs = run([(0, H, b"0RV\r\n"), (0.01, D, b"0%%08\r\n"), (0.1, H, b"0RV\r\n"), (0.11, D, b"0RV100\r\n"),
                 (0.2, H, b"0%C\r\n"), (0.21, D, b"0%C00\r\n"), (0.3, H, b"0RV\r\n"), (0.31, D, b"0%%0E\r\n"),
                 (0.4, H, b"0%C\r\n"), (0.41, D, b"0%C00\r\n"),
                 (0.5, H, b"0RV\r\n"), (0.51, D, b"0%%0E\r\n"), (0.6, H, b"0%C\r\n"), (0.61, D, b"0%%0E\r\n"),
                 (0.7, H, b"0RV\r\n"), (0.71, D, b"0RV100\r\n"),
                 (0.8, H, b"0RV\r\n"), (0.81, D, b"0RV100\r\n")])
-    assert codes(recs) == [(H, ("alarm-ignored",)), (D, ("latch-broken",)), (D, ("estop-cleared",))]
+    assert codes(recs) == [(H, ("alarm-ignored",)), (D, ("latch-broken",))]
 
 
 def test_junk_lines_and_noise():
-    """Bytes that form no frame are garbage; a junk line (ending in LF) may take an alarm answer (a device
-    reads it as a malformed command, silent item 1) but needs none; noise before a frame is its own junk."""
+    """Bytes that form no frame are garbage; a junk line (ending in LF) is an error the device must answer
+    with an alarm answer (docs/protocol.md "Behaviour the vendor text states"), silence is no-answer;
+    noise before a frame is its own junk."""
     recs = run([(0, H, b"\xff\xfe\r\n"), (0.01, D, b"0%%01\r\n"), (0.1, H, b"\x00\x00"),
                 (0.1, H, b"0%C\r\n"), (0.11, D, b"0%C00\r\n"), (0.2, H, b"hello\r\n"),
-                (0.3, H, b"0RV\r\n"), (0.31, D, b"0RV100\r\n")])
+                (1.3, H, b"0RV\r\n"), (1.31, D, b"0RV100\r\n")])
     assert [(type(r).__name__, r.violations) for r in recs] == [
         ("JunkRecord", ("garbage",)), ("FrameRecord", ()), ("JunkRecord", ("garbage",)),
-        ("FrameRecord", ()), ("FrameRecord", ()), ("JunkRecord", ("garbage",)), ("FrameRecord", ()),
-        ("FrameRecord", ())]
-    assert recs[1].reply_to == 0 and recs[7].reply_to == 6
+        ("FrameRecord", ()), ("FrameRecord", ()), ("JunkRecord", ("garbage",)),
+        ("TimeoutRecord", ("no-answer",)), ("FrameRecord", ()), ("FrameRecord", ())]
+    assert recs[1].reply_to == 0 and recs[6].command == 5 and recs[8].reply_to == 6
+    assert recs[6].sides == ("device",) and recs[5].sides == ("host",)
 
 
-def test_malformed_command_may_stay_unanswered():
-    """How a device treats a malformed command is a silent point (item 1): no no-answer when it stays
-    silent, and the next command pairs with the next answer."""
+def test_malformed_command_left_unanswered_is_no_answer():
+    """A malformed command is owed an alarm answer (docs/protocol.md "Behaviour the vendor text states";
+    only its code is silent, item 1): silence is no-answer, and the next command pairs with the next
+    answer."""
     recs = run([(0, H, b"0RP\r\n"), (2.0, H, b"0RV\r\n"), (2.01, D, b"0%%01\r\n")])
-    assert codes(recs) == [(H, ("bad-length",))]
+    assert codes(recs) == [(H, ("bad-length",)), ("timeout", ("no-answer",))]
     assert recs[-1].reply_to == 1
 
 
@@ -284,3 +287,51 @@ def test_latency_stats_match_exact_statistics_to_the_microsecond(values):
     assert got["n"] == len(values)
     assert got["min"] == min(us) / 1000 and got["max"] == max(us) / 1000
     assert got["median"] == round(statistics.median(us) / 1000, 3)
+
+
+# ---- regression tests of issue 12, each named after the rule ----
+
+def test_pairing_resyncs_after_a_device_silent_to_malformed_commands():
+    """A device that never answers malformed commands gets no-answer for each, and every later answer
+    still pairs with its own command (no answer-mismatch, no overlap pile-up, true latencies)."""
+    script, t = [], 0.0
+    for _ in range(20):
+        script += [(t, H, b"0RP\r\n"), (t + 1.2, H, b"0RV\r\n"), (t + 1.201, D, b"0RV100\r\n")]
+        t += 2.0
+    recs = run(script)
+    assert all_codes(recs) == sorted(["bad-length"] * 20 + ["no-answer"] * 20)
+    answers = [r for r in recs if isinstance(r, FrameRecord) and r.dir == D]
+    assert all(r.latency_ms is not None and r.latency_ms < 2 for r in answers)
+
+
+def test_pairing_resyncs_after_a_garbled_answer():
+    """One garbled byte in an answer (noise) makes that answer junk inside its command's window: it is the
+    command's garbled answer, and later answers pair with their own commands."""
+    recs = run([(0, H, b"0RV\r\n"), (0.002, D, b"\xb0RV100\r\n"), (0.1, H, b"0RS\r\n"),
+                (0.102, D, b"0RS02\r\n"), (0.2, H, b"0RC\r\n"), (0.202, D, b"0RC00002FFFFFF\r\n")])
+    assert codes(recs) == [(D, ("garbage",))]
+    junk = recs[1]
+    assert isinstance(junk, JunkRecord) and junk.reply_to == 0 and junk.sides == ("device",)
+    assert json.loads(junk.to_json())["reply_to"] == 0
+    assert [r.reply_to for r in recs if isinstance(r, FrameRecord) and r.dir == D] == [2, 4]
+
+
+def test_sides_in_records_and_summary_by_side():
+    """Each record says whose fault each violation is ("sides", aligned with "violations"); the summary
+    counts by side, and the text views show it (docs/protocol.md "Violation codes")."""
+    a = Analyzer()
+    recs = []
+    for t, d, b in [(0, H, b"ORV\r\n"), (0.01, D, b"0%%01\r\n"), (0.1, H, b"O%C\r\n"),
+                    (0.11, D, b"0%%01\r\n"), (0.2, H, b"0%C\r\n"), (0.21, D, b"0%C00\r\n"),
+                    (0.3, H, b"0RV\r\n"), (0.31, D, b"ORV100\r\n")]:
+        recs += a.feed(Chunk(t, d, b))
+    recs += a.close()
+    assert [json.loads(r.to_json())["sides"] for r in recs if r.violations] == [
+        ["host"], ["host", "host"], ["device"]]  # O%C is no reset: alarm-ignored too
+    summary = a.summary()
+    assert summary["violations"]["letter-o"] == 3
+    assert summary["by_side"] == {"host": {"letter-o": 2, "alarm-ignored": 1}, "device": {"letter-o": 1}}
+    from sniffer.view import summary_lines, violation_lines
+    assert any("letter-o[/] x3 (host 2, device 1)" in line for line in summary_lines(summary))
+    assert "host   ✗ letter-o" in violation_lines(recs[0])[0]
+    assert "device ✗ letter-o" in violation_lines(recs[-1])[0]

@@ -1,9 +1,10 @@
 """The host client: drive an XA-C1 over any pyserial port, one exchange at a time.
 
-A thin I/O shell around sans-IO parts: ``Framer`` cuts the answer out of the byte stream,
-``exchange.judge_answer`` decodes and checks it against the command, ``exchange.StormGuard`` keeps the
-host's duty to stop after communication errors in a row, and ``movewait.MoveBudget`` prices the
-timeout of a move (docs/protocol.md "Behaviour the vendor text states").
+A thin I/O shell around sans-IO parts: ``Framer`` cuts the answer out of the byte stream, the client's
+own ``conversation.Conversation`` (the one rulebook the sniffer and the conformance suite use too) judges
+each exchange and keeps the host's duty to stop after communication errors in a row, and
+``movewait.MoveBudget`` prices the timeout of a move (docs/protocol.md "Behaviour the vendor text
+states").
 
 An exchange: bytes already waiting are read and reported as ``stale`` (a late answer to an earlier
 exchange must not pass for this one's); the command is written; bytes are read until the framer
@@ -23,8 +24,9 @@ import serial
 from . import motion, spec
 from . import urlhandler as _urlhandler  # noqa: F401  (registers xac1sim:// for serial_for_url)
 from .codec import diagnose, show_bytes
+from .conversation import Conversation, Verdict
 from .errors import CommunicationHalted, ResponseTimeout
-from .exchange import Exchange, StormGuard, answer_or_raise, judge_answer
+from .exchange import Exchange, answer_or_raise
 from .framer import FrameBytes, Framer, Junk
 from .frames import (
     AlarmReset,
@@ -75,7 +77,8 @@ class Client:
     """An XA-C1 host. ``port``: a pyserial URL or device path (opened at 9600 8N1) or an open
     ``serial.Serial`` (set to 9600 8N1; left open by ``close()``).
 
-    ``timeout``: turnaround timeout in seconds for immediate commands. Moves (0MP, 0MV) wait
+    ``timeout``: turnaround timeout in seconds for immediate commands (default: the project's one
+    answer-timeout, ``spec.NO_ANSWER_TIMEOUT_S``). Moves (0MP, 0MV) wait
     ``timeout + time_scale * estimated move time + move_margin`` (see ``movewait``); ``stroke``
     bounds the worst case when the position or a point is unknown. ``storm_limit``: communication-error
     answers in a row after which nothing is sent until ``rearm()`` (None: never halt).
@@ -84,7 +87,7 @@ class Client:
     until the line has been quiet this long.
     """
 
-    def __init__(self, port: str | serial.Serial, *, timeout: float = 0.5,
+    def __init__(self, port: str | serial.Serial, *, timeout: float = spec.NO_ANSWER_TIMEOUT_S,
                  storm_limit: int | None = spec.STORM_LIMIT,
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS, move_margin: float = 2.0,
                  on_traffic: TrafficHook | None = None, time_scale: float = 1.0,
@@ -92,14 +95,19 @@ class Client:
                  clock: Callable[[], float] = time.monotonic) -> None:
         if timeout <= 0 or time_scale < 0 or move_margin < 0 or drain_quiet < 0:
             raise ValueError("timeout must be > 0; time_scale, move_margin and drain_quiet >= 0")
+        if storm_limit is not None and storm_limit < 1:
+            raise ValueError(f"storm_limit must be a positive count or None, got {storm_limit}")
         self.timeout = timeout
         self.time_scale = time_scale
         self.move_margin = move_margin
         self.drain_quiet = drain_quiet
         self.on_traffic = on_traffic
         self.clock = clock
-        self._guard = StormGuard(storm_limit)
+        self.storm_limit = storm_limit
+        self.conversation = Conversation(no_answer_timeout=timeout,
+                                         storm_limit=storm_limit or spec.STORM_LIMIT, speeds=speeds)
         self._budget = MoveBudget(speeds, stroke)
+        self._read_t = 0.0
         self._lock = threading.RLock()
         self._serial, self._owned = open_port(port)
 
@@ -111,14 +119,13 @@ class Client:
 
     @property
     def comm_errors_in_row(self) -> int:
-        """``0%%01`` answers since the last normal answer (docs/protocol.md "Behaviour the vendor text
-        states", host duty)."""
-        return self._guard.in_row
+        """``0%%01`` answers in a row (docs/protocol.md host duty; the rule is the conversation's)."""
+        return self.conversation.knowledge.storm_run
 
     @property
     def halted(self) -> bool:
         """True once ``storm_limit`` communication errors came in a row; cleared by ``rearm()``."""
-        return self._guard.halted
+        return self.storm_limit is not None and self.conversation.halted
 
     @property
     def position(self) -> int | None:
@@ -128,7 +135,7 @@ class Client:
     def rearm(self) -> None:
         """Allow sending again after a communication-error storm (have the equipment checked first)."""
         with self._lock:
-            self._guard.rearm()
+            self.conversation.rearm()
 
     def move_timeout(self, command: Frame) -> float:
         """Seconds to wait for ``command``'s answer: the turnaround timeout, plus the move for 0MP/0MV."""
@@ -151,38 +158,65 @@ class Client:
         """Send any bytes (even a malformed command) and return the answer as the device sent it,
         decoded leniently with its violations. Raises only ``ResponseTimeout`` (no frame-shaped
         answer in time) and ``CommunicationHalted``; the answers still count for the storm guard."""
-        command, _ = diagnose(raw, spec.COMMAND)
+        command, violations = diagnose(raw, spec.COMMAND)
+        if any(v.code not in spec.NOTICES for v in violations):
+            command = None  # a malformed command is no move: it gets the plain timeout (e.g. 0MV vel 00)
         return self._exchange(bytes(raw), command, timeout)
 
     def _exchange(self, raw: bytes, command: Frame | None, timeout: float | None) -> Exchange:
         with self._lock:
-            if self._guard.halted:
+            if self.halted:
                 raise CommunicationHalted(
-                    f"{self._guard.in_row} communication-error answers (0%%01) in a row: the vendor says "
-                    f"stop and have the equipment checked; call rearm() to send again")
+                    f"{self.comm_errors_in_row} communication-error answers (0%%01) in a row: the vendor "
+                    f"says stop and have the equipment checked; call rearm() to send again")
             if timeout is None:
                 timeout = self.move_timeout(command) if command is not None else self.timeout
             stale = self._read_waiting()
+            self._judge(spec.DEVICE_SIDE, stale, None)
             self._serial.write(raw)
             self._serial.flush()
             t_sent = self.clock()
             self._traffic("host", raw, t_sent)
-            answer, junk, received = self._read_answer(t_sent + timeout)
+            self._judge(spec.HOST_SIDE, raw, t_sent, timeout)
+            answer, junk, after, received = self._read_answer(t_sent + timeout)
             if answer is None:
+                self._judge(spec.DEVICE_SIDE, junk, None)
+                self.conversation.host_gave_up(self.clock())
                 self._budget.observe(command, None, clean=False)
                 late = self._drain()
                 what = f"{show_bytes(received)} (no complete frame)" if received else "nothing"
                 raise ResponseTimeout(
                     f"no answer to {show_bytes(raw)} within {timeout:.3f} s; received {what}"
                     + (f"; {len(late)} late byte(s) drained" if late else ""), partial=received)
-            frame, violations = judge_answer(raw, answer.raw, junk)
+            verdicts = self._judge(spec.DEVICE_SIDE, junk, t_sent) if junk else []
+            verdicts += self.conversation.device_frame(answer.raw, answer.t_first, answer.t_last)
+            self.conversation.host_gave_up(self.clock())  # the client waits for no other answer
+            self._judge(spec.DEVICE_SIDE, after, answer.t_last)  # unsolicited, reported as junk
+            violations = [v for verdict in verdicts if verdict.sender == spec.DEVICE_SIDE
+                          for v in verdict.violations]
+            frame = verdicts[-1].frame
             exchange = Exchange(sent=raw, raw=answer.raw, frame=frame, violations=violations,
                                 latency=None if answer.t_first is None else answer.t_first - t_sent,
-                                junk=junk, stale=stale, t_sent=t_sent)
-            clean = not exchange.errors
-            self._guard.observe(frame, clean)
-            self._budget.observe(command, frame, clean)
+                                junk=junk + after, stale=stale, t_sent=t_sent)
+            self._budget.observe(command, frame, not exchange.errors)
             return exchange
+
+    def _judge(self, sender: str, data: bytes, t: float | None, window: float | None = None) -> list[Verdict]:
+        """Bytes one side put on the line, through a framer into the client's conversation."""
+        if not data:
+            return []
+        framer = Framer()
+        out: list[Verdict] = []
+        c = self.conversation
+        for event in framer.feed(data, t) + framer.flush():
+            if sender == spec.HOST_SIDE:
+                judge = c.host_junk if isinstance(event, Junk) else c.host_frame
+                out += judge(event.raw, event.t_first, event.t_last, window)
+            elif isinstance(event, Junk):
+                out += c.device_junk(event.raw, event.t_first, event.t_last)
+            else:
+                out += c.device_frame(event.raw, event.t_first, event.t_last)
+        return out
 
     def _traffic(self, direction: str, data: bytes, t: float) -> None:
         if self.on_traffic is not None and data:
@@ -190,8 +224,9 @@ class Client:
 
     def _read_chunk(self) -> bytes:
         data = self._serial.read(max(1, self._serial.in_waiting))
+        self._read_t = self.clock()  # one time for the traffic hook and the framer
         if data:
-            self._traffic("device", data, self.clock())
+            self._traffic("device", data, self._read_t)
         return data
 
     def _read_waiting(self) -> bytes:
@@ -201,9 +236,9 @@ class Client:
             out += self._read_chunk()
         return out
 
-    def _read_answer(self, deadline: float) -> tuple[FrameBytes | None, bytes, bytes]:
-        """(answer frame, junk, every byte received) once the first frame-shaped line is in, or
-        (None, junk, received) at the deadline."""
+    def _read_answer(self, deadline: float) -> tuple[FrameBytes | None, bytes, bytes, bytes]:
+        """(answer frame, junk before it, bytes after it in the same read, every byte received) once the
+        first frame-shaped line is in, or (None, junk, b"", received) at the deadline."""
         framer = Framer()
         junk, received = b"", b""
         while self.clock() < deadline:
@@ -211,13 +246,13 @@ class Client:
             if not data:
                 continue
             received += data
-            for i, event in enumerate(events := framer.feed(data, self.clock())):
+            for i, event in enumerate(events := framer.feed(data, self._read_t)):
                 if isinstance(event, Junk):
                     junk += event.raw
                     continue
                 rest = events[i + 1:] + framer.flush()  # bytes that came in the same read
-                return event, junk + b"".join(e.raw for e in rest), received
-        return None, junk, received
+                return event, junk, b"".join(e.raw for e in rest), received
+        return None, junk, b"", received
 
     def _drain(self) -> bytes:
         """Read late bytes until the line has been quiet for ``drain_quiet`` (bounded by the timeout)."""

@@ -1,6 +1,7 @@
 """Strict and lenient decoding of one frame, from one walk over the spec's layouts.
 
-``diagnose`` is the lenient path (the sniffer's): it finds the header (tolerating a letter ``O``), then
+``diagnose`` is the lenient path (the sniffer's): it finds the header (tolerating a letter ``O`` and a
+header in lower case, each with its violation), then
 checks length and terminator, walks the layout (literals, then each field through its construct) and
 lists every deviation as a ``Violation`` with its byte offset, decoding whatever it can. ``parse`` is
 the strict path: the same walk, raising the first violation in docs/protocol.md "Framing" order (header,
@@ -51,12 +52,21 @@ def _find_spec(data: bytes, role: spec.Role, out: list[Violation]) -> spec.Frame
     fs = spec.SPECS.get((text, role))
     if fs is not None:
         return fs
-    if head[:1] == spec.LETTER_O:
+    lead_o = head[:1] == spec.LETTER_O
+    if lead_o:
         fs = spec.SPECS.get(("0" + text[1:], role))
         if fs is not None:
-            out.append(Violation("letter-o", 0, f"{fs.header} {role}: byte 0: expected '0' (the "
-                                 f"digit zero), got 'O' (the letter O) (letter-o)"))
+            out.append(_letter_o(fs, role))
             return fs
+    upper = text.upper()
+    fs = spec.SPECS.get((("0" + upper[1:]) if lead_o else upper, role))
+    if fs is not None and head.isascii():  # docs/protocol.md "Framing": 0rv is read as 0RV, a notice
+        if lead_o:
+            out.append(_letter_o(fs, role))
+        at = next(i for i, (a, b) in enumerate(zip(text, fs.header, strict=False)) if a != b and i > 0)
+        out.append(Violation("lowercase-hex", at, f"{fs.header} {role}: byte {at}: expected the header "
+                             f"{fs.header} in upper case, got {show_bytes(head)} (lowercase-hex)"))
+        return fs
     known = sorted(spec.HEADERS[role])
     matched = max((_common_prefix(head, h.encode()) for h in known), default=0)
     hint = ""
@@ -68,6 +78,11 @@ def _find_spec(data: bytes, role: spec.Role, out: list[Violation]) -> spec.Frame
                          f"{role}: byte {matched}: expected a header ({', '.join(known)}), "
                          f"got {show_bytes(head)}{hint} (unknown-command)"))
     return None
+
+
+def _letter_o(fs: spec.FrameSpec, role: str) -> Violation:
+    return Violation("letter-o", 0, f"{fs.header} {role}: byte 0: expected '0' (the digit zero), got 'O' "
+                     f"(the letter O) (letter-o)")
 
 
 def _common_prefix(a: bytes, b: bytes) -> int:

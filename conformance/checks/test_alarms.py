@@ -77,6 +77,7 @@ def test_estop_survives_reset(xac1_dut):
                          "0%C answers 0%%0E and 0RV answers 0%%0E too: the stop stays latched until the "
                          "stop input is released")
     sim.set_estop(True)
+    xac1_dut.client.conversation.stop_input(True)  # the rulebook knows the stop input here
     try:
         first = xac1_dut.send(ReadVersion())
         expect(first.alarm is not None and first.alarm.code == spec.ALARM_ESTOP,
@@ -90,5 +91,6 @@ def test_estop_survives_reset(xac1_dut):
                first, r, after)
     finally:
         sim.set_estop(False)
+        xac1_dut.client.conversation.stop_input(False, unhomes=sim.config.estop_rehome)
         xac1_dut.latched = None  # the next check resets whatever is left
         xac1_dut.budget.homed = None

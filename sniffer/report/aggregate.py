@@ -10,7 +10,7 @@ docs/protocol.md "Violation codes"). Memory is bounded whatever the capture's le
   width doubles when there are more than ``Limits.bins`` bins), which draws the whole capture;
 - answer latency: a histogram per command with two significant digits of milliseconds (``LogHistogram``:
   at most 90 buckets a decade) and latency over time (points up to a cap, then per-bin mean and max);
-- axis position (0RC, 0MP and 0MV answers; moves with the estimated duration of ``sniffer.axis``),
+- axis position (0RC, 0MP and 0MV answers; moves with the duration the rulebook estimated),
   homing and alarm marks: points up to a cap, then every other point is dropped (the shape stays);
 - the alarm history: the first ``Limits.alarms`` alarms, the rest counted.
 Captures without time (raw files and the like) are drawn against the record number instead of time.
@@ -25,7 +25,6 @@ from typing import Any
 
 from xac1_proto import frames, spec
 
-from ..axis import AxisEstimate
 from ..records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 from ..view import show_raw
 
@@ -168,6 +167,7 @@ class _Command:
     header: str | None
     frame: frames.Frame | None
     kept: int | None  # index in ``records`` when kept whole
+    window_s: float | None = None  # the answer window the rulebook gave it
 
 
 @dataclass
@@ -204,7 +204,7 @@ class SessionAggregator:
         self.alarms: list[Alarm] = []
         self.alarm_count = 0
         self._waiting: dict[int, _Command] = {}
-        self._axis = AxisEstimate()
+        self._position: int | None = None  # the last position an answer told (None: unknown)
         self._open_alarm: Alarm | None = None
         self._await_reaction: Alarm | None = None
         self.finished = False
@@ -261,7 +261,7 @@ class SessionAggregator:
         return len(self.records) - 1
 
     def _host_frame(self, record: FrameRecord, x: float, kept: int | None) -> None:
-        self._waiting[record.i] = _Command(x, record.t, record.header, record.frame, kept)
+        self._waiting[record.i] = _Command(x, record.t, record.header, record.frame, kept, record.window_s)
         if len(self._waiting) > self.limits.waiting:
             del self._waiting[next(iter(self._waiting))]
         alarm = self._await_reaction
@@ -298,7 +298,7 @@ class SessionAggregator:
         self.alarm_marks.add((x, frame.code, kept))
         if frame.code == spec.ALARM_NONE:
             return
-        self._axis.forget_position()
+        self._position = None
         open_alarm = self._open_alarm
         if open_alarm is not None and open_alarm.code == frame.code:
             open_alarm.repeats += 1
@@ -332,12 +332,14 @@ class SessionAggregator:
 
     def _axis_answer(self, record: FrameRecord, frame: frames.Frame, x: float,
                      command: _Command | None, kept: int | None) -> None:
-        start = self._axis.position
+        start = self._position
         estimate = None
-        if command is not None and command.frame is not None and record.header in spec.MOVE_HEADERS:
-            estimate = self._axis.move_time(command.frame)
-        self._axis.learn(frame)
+        if command is not None and command.window_s is not None and record.header in spec.MOVE_HEADERS:
+            # the rulebook's answer window is the estimated move time doubled plus the plain timeout
+            estimate = max(0.0, (command.window_s - self.no_answer_timeout) / 2.0)
         pos = getattr(frame, "pos", None)
+        if record.header in ("0RC", "0MP", "0MV") and pos is not None:
+            self._position = None if pos == spec.UNKNOWN_POSITION else pos
         if record.header not in ("0RC", "0MP", "0MV") or pos is None or pos == spec.UNKNOWN_POSITION:
             return
         self.positions.add((x, pos, record.header, kept))

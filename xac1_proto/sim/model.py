@@ -146,7 +146,6 @@ class DeviceModel:
     def _command(self, line: bytes, t: float, overflow: bool) -> list[Output]:
         self.commands += 1
         frame = self._decode(line, overflow)
-        self._update_mode(frame)
         if frame is None:
             code = self.latched or self.config.malformed_alarm
             answer: fr.Frame = self._alarm(code)
@@ -156,6 +155,8 @@ class DeviceModel:
         if self.latched is not None and frame.header != spec.RESET_HEADER:
             return [self._send(fr.AlarmAnswer(code=self.latched), t)]
         answer, moving = _HANDLERS[frame.header](self, frame, t)
+        if not isinstance(answer, fr.AlarmAnswer):  # silent item 18: a refused command takes no effect
+            self._update_mode(frame)
         out = self._send(answer, t, moving)
         if frame.header in spec.MOVE_HEADERS:
             self.busy_until = out.due

@@ -1,0 +1,805 @@
+"""The one rulebook: a sans-IO engine that judges an XA-C1 conversation (docs/protocol.md, all of it).
+
+How it works (h11's shape). A caller cuts each line into frames and junk runs (``Framer``) and feeds
+them as events, in the order seen, with their times when it has them: ``host_frame``, ``device_frame``,
+``host_junk``, ``device_junk``, then ``tick(now)`` as time passes and ``close(now)`` at the end. Facts
+the line cannot show enter as events when a caller knows them: ``power_on()``, ``stop_input(pressed)``,
+``move_finished(now)``. Every event returns ``Verdict``s: one for the frame or junk run fed (decoded
+frame, violations, what it answers, latency) and a ``no-answer`` verdict for each host line whose answer
+window closed. ``knowledge`` holds what is known of the device: each ``Fact`` is ``unknown``, ``known``
+(established by the conversation or an out-of-band event: judged) or ``learnt`` (read from an answer
+with nothing to compare it with: judged from then on). No clock, no port, no thread: times come in.
+
+Pairing (docs/protocol.md "Framing": strict request/answer; "Violation codes": first in, first out).
+A host line that must be answered waits in a queue: a well-formed command, and an *error* (a host frame
+with an error-severity violation, or a host junk run ending in LF) which must get an alarm answer
+("Behaviour the vendor text states"). An answer pairs with the first waiting line of its header sent
+before the answer began; failing that with the head of the queue (an alarm answer fits any line). The
+lines it skips got no answer (``no-answer``): one silent exchange never shifts later pairs. A device
+junk run inside the head's answer window is the head's garbled answer. A line's answer window closes
+at its last byte + ``no_answer_timeout`` (+ twice the estimated move time for 0MP/0MV, silent item 17);
+without times, at ``close()``. A host line sent while another waits is ``overlapping-command`` (without
+times, order cannot tell it from the first line left unanswered: the verdict says so); the overlapped
+line itself is not owed an answer. A line sent during a move is ``command-during-motion`` and is
+discarded by the device (silent item 10).
+
+The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].side(sender)``):
+
+| code | on | rule (docs/protocol.md) |
+|---|---|---|
+| framing codes | the frame | ``codec.diagnose``: the frame table ("Framing", "Fields", "Frames") |
+| ``overlapping-command`` | host line | sent while an earlier line is owed its answer ("Framing") |
+| ``command-during-motion`` | host line | sent while a move's answer is awaited ("Behaviour") |
+| ``alarm-ignored`` | host line | not a well-formed 0%C after an alarm answer ("Behaviour": latch) |
+| ``comm-error-storm`` | host line | the storm run reached the limit (host duty): the run counts ``0%%01``
+  answers, the reset answer neither counts nor ends it, any other answer ends it |
+| ``no-answer`` | its own verdict | a line's window closed, or a later line was answered ("Behaviour") |
+| ``error-accepted`` | answer | a normal answer to an error ("Behaviour": errors get ``0%%Ec``) |
+| ``answer-mismatch`` | answer | another command's answer, or another N ("Frames") |
+| ``echo-mismatch`` | answer | an echo with other field values; case alone is the notice ("Behaviour") |
+| ``latch-broken`` | answer | a normal answer while an alarm is latched; a latched code changing to
+  another than 0E; a reset (0%C) answered with an alarm other than 0E: the reset did not work ("Behaviour":
+  latch and reset; our choice of code for the failed reset) |
+| ``estop-cleared`` | answer | 0%C00 while the stop input is *known* pressed (silent item 3) |
+| ``readback-mismatch`` | answer | a point (0WP, 0WC, an earlier 0RP), the OUT ports (0WS, an earlier
+  0RS), the position (0MV, 0MP N to a known point, an earlier 0RC), the version read back otherwise; 0RC
+  answering a position while the axis is known not homed ("Behaviour": 0RC before homing) |
+| ``unsolicited-answer`` | answer | nothing waits for it ("Violation codes") |
+| ``garbage`` | junk | bytes that form no frame ("Framing") |
+
+Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a command): a command
+refused with an alarm takes no effect (silent item 18); a garbled, missing or faulty answer makes what
+the command would have changed unknown. What docs/protocol.md leaves open is never judged: it becomes
+``unknown`` and is learnt from the next answer (the alarm code of an error, item 1; the OUT ports after
+0MP N and 0RC's O, item 8; the position after homing, item 7; 0WC's V, A, O, item 4; what the axis does
+after the stop input is released, item 3, unless the caller says).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Final, Generic, Literal, TypeVar
+
+from . import motion, spec
+from .codec import diagnose, show_bytes
+from .errors import Violation
+from .frames import (
+    AlarmAnswer,
+    Frame,
+    MoveDirect,
+    MovePoint,
+    PointAnswer,
+    ReadCurrentAnswer,
+    ReadOutputsAnswer,
+    ReadPointAnswer,
+    ReadVersionAnswer,
+    StoreCurrentAnswer,
+)
+
+T = TypeVar("T")
+Status = Literal["unknown", "known", "learnt"]
+UNKNOWN: Final = "unknown"
+KNOWN: Final = "known"
+LEARNT: Final = "learnt"
+HOST: Final = spec.HOST_SIDE
+DEVICE: Final = spec.DEVICE_SIDE
+STROKE_END: Final = spec.UNKNOWN_POSITION - 1  # the farthest position a move can reach (silent item 5)
+
+_BEHAVIOUR: Final = 'docs/protocol.md "Behaviour the vendor text states"'
+_SILENT: Final = 'docs/protocol.md "Where the vendor text is silent"'
+_CODES: Final = 'docs/protocol.md "Violation codes"'
+_FRAMES: Final = 'docs/protocol.md "Frames"'
+
+
+@dataclass(frozen=True)
+class Fact(Generic[T]):
+    """One thing known of the device: its value and how it is known (``unknown``, ``known``, ``learnt``)."""
+
+    value: T | None = None
+    status: Status = UNKNOWN
+
+    @property
+    def judged(self) -> bool:
+        """Is an answer compared with it (known or learnt)?"""
+        return self.status != UNKNOWN
+
+
+@dataclass(frozen=True)
+class PointData:
+    """A point of the position table: V, A, O, Pos."""
+
+    v: int
+    a: int
+    o: int
+    pos: int
+
+    def show(self) -> str:
+        return f"V={self.v} A={self.a} O={self.o} Pos={self.pos:06X}"
+
+
+@dataclass
+class Knowledge:
+    """What the conversation established about the device. ``latched``: the latched alarm code (value
+    None and known: nothing latched); ``storm_run``: ``0%%01`` answers in a row; ``stop_pressed``: the
+    emergency stop input, known only from an out-of-band event."""
+
+    latched: Fact[int] = field(default_factory=Fact)
+    storm_run: int = 0
+    homed: Fact[bool] = field(default_factory=Fact)
+    position: Fact[int] = field(default_factory=Fact)
+    points: dict[int, Fact[PointData]] = field(default_factory=dict)
+    outputs: Fact[int] = field(default_factory=Fact)
+    mode: Fact[int] = field(default_factory=Fact)
+    version: Fact[str] = field(default_factory=Fact)
+    stop_pressed: Fact[bool] = field(default_factory=Fact)
+
+    def point(self, n: int) -> Fact[PointData]:
+        return self.points.get(n, Fact())
+
+
+VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer"]
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The engine's judgement of one event. ``i``: the event's number among frames and junk runs (None
+    for ``no-answer``); ``sender``: whose bytes; ``header``: the spec header read (None when unknown);
+    ``frame``: the lenient decode; ``violations``: what is wrong, each with a sentence citing
+    docs/protocol.md; ``reply_to``: the host line answered (``no-answer``: the line left unanswered);
+    ``latency_s``: from that line's last byte to this answer's first byte; ``t``: time of the first
+    byte (``no-answer``: when the window closed, None without time); ``waited_s``: the window applied
+    (on a host frame: the answer window it was given, a move's estimated time doubled included)."""
+
+    kind: VerdictKind
+    sender: spec.Side
+    i: int | None
+    raw: bytes = b""
+    header: str | None = None
+    frame: Frame | None = None
+    violations: tuple[Violation, ...] = ()
+    reply_to: int | None = None
+    latency_s: float | None = None
+    t: float | None = None
+    t_last: float | None = None
+    waited_s: float | None = None
+
+    @property
+    def codes(self) -> tuple[spec.ViolationCode, ...]:
+        """Violation codes, each once, in the order found."""
+        return tuple(dict.fromkeys(v.code for v in self.violations))
+
+    @property
+    def sides(self) -> tuple[spec.Side, ...]:
+        """Whose fault each of ``codes`` is (docs/protocol.md "Violation codes"; aligned with ``codes``)."""
+        return tuple(side_of(code, self.sender) for code in self.codes)
+
+    @property
+    def errors(self) -> tuple[Violation, ...]:
+        """The violations that break a rule (notices left out)."""
+        return tuple(v for v in self.violations if v.code not in spec.NOTICES)
+
+
+def side_of(code: spec.ViolationCode, sender: spec.Side) -> spec.Side:
+    """Whose fault ``code`` is when found in bytes that ``sender`` sent."""
+    return spec.VIOLATION_TABLE[code].side(sender)
+
+
+def _v(code: spec.ViolationCode, sentence: str, where: str = _BEHAVIOUR) -> Violation:
+    """A conversation-level violation: the sentence, the rule's docs/protocol.md section, the code."""
+    return Violation(code, None, f"{sentence}; {where} ({code})")
+
+
+# kinds of host lines in the queue
+_COMMAND: Final = "command"  # a well-formed command: owed its answer
+_ERROR: Final = "error"  # a frame breaking the frame table, or a junk line: owed an alarm answer
+_DISCARD: Final = "discard"  # sent during a move: discarded by the device (silent item 10)
+
+
+@dataclass
+class _Line:
+    """A host line waiting for its answer."""
+
+    i: int
+    kind: str
+    header: str | None
+    frame: Frame | None
+    t_last: float | None
+    deadline: float | None
+    waited_s: float
+    overlapped: bool = False  # sent while another line waited: the host's fault, not owed an answer
+    is_move: bool = False
+
+    @property
+    def owed(self) -> bool:
+        """Does silence to this line break a rule (``no-answer``)?"""
+        return self.kind != _DISCARD and not self.overlapped
+
+    @property
+    def is_reset(self) -> bool:
+        return self.kind == _COMMAND and self.header == spec.RESET_HEADER
+
+    def name(self) -> str:
+        return f"{self.header or 'line'} #{self.i}"
+
+
+def header_of(raw: bytes, role: spec.Role) -> str | None:
+    """The spec header a frame is read as (a letter O read as the digit, lower case as upper), or None."""
+    head = raw[: spec.HEADER_WIDTH].decode("ascii", "replace").upper()
+    if head[:1] == "O":
+        head = "0" + head[1:]
+    return head if (head, role) in spec.SPECS else None
+
+
+def _show(name: str, value: object) -> str:
+    return spec.FIELDS[name].show(value) if isinstance(value, int) else str(value)
+
+
+def _is_error(violations: list[Violation]) -> bool:
+    return any(v.code not in spec.NOTICES for v in violations)
+
+
+class Conversation:
+    """One conversation between a host and an XA-C1, judged event by event (see the module docstring).
+
+    ``no_answer_timeout``: seconds after a line's last byte before silence is ``no-answer`` (moves get
+    more); ``storm_limit``: ``0%%01`` answers in a row after which a host command is ``comm-error-storm``;
+    ``speeds``: the speed table that prices a move's answer window.
+    """
+
+    def __init__(self, *, no_answer_timeout: float = spec.NO_ANSWER_TIMEOUT_S,
+                 storm_limit: int = spec.STORM_LIMIT,
+                 speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS) -> None:
+        if no_answer_timeout <= 0 or storm_limit < 1:
+            raise ValueError("no_answer_timeout must be > 0 and storm_limit >= 1")
+        self.no_answer_timeout = no_answer_timeout
+        self.storm_limit = storm_limit
+        self.speeds = speeds
+        self.knowledge = Knowledge()
+        self._queue: deque[_Line] = deque()
+        self._motion: _Line | None = None
+        self._unreset_alarm = False  # an alarm answer came and no well-formed 0%C since
+        self._next_i = 0
+        self._last_t: float | None = None
+        self._answer_since: float | None = None  # an answer began at this time and is still arriving
+
+    # ---- what callers ask ----
+
+    @property
+    def waiting(self) -> bool:
+        """Does a host line wait for its answer?"""
+        return bool(self._queue)
+
+    @property
+    def expecting_answer(self) -> bool:
+        """Does a well-formed command (not an error, not a line discarded during a move) wait?"""
+        return self._motion is not None or any(w.kind == _COMMAND for w in self._queue)
+
+    @property
+    def moving(self) -> bool:
+        """Is a move's answer awaited?"""
+        return self._motion is not None
+
+    @property
+    def halted(self) -> bool:
+        """The host duty: has the storm limit been reached (any further command is comm-error-storm)?"""
+        return self.knowledge.storm_run >= self.storm_limit
+
+    def rearm(self) -> None:
+        """The equipment was checked (the client's ``rearm``): the storm run starts over."""
+        self.knowledge.storm_run = 0
+
+    def answer_window(self, command: Frame) -> float:
+        """Seconds a command's answer may take after its last byte (silent item 17)."""
+        return 2.0 * self.move_time(command) + self.no_answer_timeout
+
+    # ---- out-of-band facts ----
+
+    def power_on(self) -> None:
+        """The device was just powered on: not homed, mode 0, nothing latched (docs/protocol.md
+        "Behaviour the vendor text states": 0RC before homing, power-on mode)."""
+        k = self.knowledge
+        k.homed, k.position = Fact(False, KNOWN), Fact()
+        k.mode, k.latched = Fact(0, KNOWN), Fact(None, KNOWN)
+        k.storm_run = 0
+        self._unreset_alarm = False
+
+    def stop_input(self, pressed: bool, *, unhomes: bool = False) -> None:
+        """The emergency stop input, as a caller that drives it knows (the simulator). Pressed: alarm
+        0E latches and a move stops where it is (silent item 19). Released: 0E clears (silent item 3);
+        ``unhomes``: the caller knows the axis must then be homed again (when the stop was on)."""
+        k = self.knowledge
+        was_on = k.stop_pressed.value is True or k.latched.value == spec.ALARM_ESTOP
+        k.stop_pressed = Fact(pressed, KNOWN)
+        if pressed:
+            k.latched = Fact(spec.ALARM_ESTOP, KNOWN)
+            k.position = Fact()
+            return
+        if k.latched.value == spec.ALARM_ESTOP:
+            k.latched = Fact(None, KNOWN)
+        if unhomes and was_on:  # a release of a stop that was not on changes nothing
+            k.homed, k.position = Fact(False, KNOWN), Fact()
+
+    def move_finished(self, now: float) -> None:
+        """A caller knows the move under way has ended: its answer is due within the plain timeout."""
+        if self._motion is not None:
+            self._motion.deadline = now + self.no_answer_timeout
+
+    # ---- events ----
+
+    def host_frame(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
+                   window: float | None = None) -> list[Verdict]:
+        """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
+        for its answer, when it says so (the client); else the engine's answer window."""
+        out = self._time(t_first)
+        i = self._number()
+        frame, violations = diagnose(raw, spec.COMMAND)
+        found = list(violations)
+        header = frame.header if frame is not None else header_of(raw, spec.COMMAND)
+        error = frame is None or _is_error(violations)
+        found += self._host_duties(header, error)
+        line = self._enqueue(i, _ERROR if error else _COMMAND, header, None if error else frame,
+                             t_last, found, window)
+        if line.is_move and self.knowledge.latched.value is None and self._motion is None \
+                and line.kind == _COMMAND and not line.overlapped:
+            self._motion = line
+        out.append(Verdict("host-frame", HOST, i, bytes(raw), header, frame, tuple(found),
+                           t=t_first, t_last=t_last, waited_s=line.waited_s))
+        return out
+
+    def host_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
+                  window: float | None = None) -> list[Verdict]:
+        """Host bytes that form no frame. A run ending in LF is a line the device must answer as an
+        error (docs/protocol.md "Behaviour the vendor text states")."""
+        out = self._time(t_first)
+        i = self._number()
+        found = [Violation("garbage", 0, f"{len(raw)} host bytes that form no frame: {show_bytes(raw)} "
+                           f"(garbage)")]
+        if raw.endswith(b"\n"):
+            self._enqueue(i, _ERROR, None, None, t_last, found, window)
+        out.append(Verdict("host-junk", HOST, i, bytes(raw), violations=tuple(found), t=t_first,
+                           t_last=t_last))
+        return out
+
+    def device_frame(self, raw: bytes, t_first: float | None = None,
+                     t_last: float | None = None) -> list[Verdict]:
+        """A frame-shaped device line: an answer."""
+        out = self._time(t_first, answer=True)
+        self._answer_since = None
+        i = self._number()
+        frame, violations = diagnose(raw, spec.ANSWER)
+        found = list(violations)
+        header = frame.header if frame is not None else header_of(raw, spec.ANSWER)
+        line, skipped = self._pair(header, t_first)
+        out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
+        latency = None
+        if line is None:
+            found.append(_v("unsolicited-answer", f"{header or 'this'} answer with no command waiting "
+                            f"for it", _CODES))
+        elif line.t_last is not None and t_first is not None:
+            latency = t_first - line.t_last
+        self._judge_answer(line, header, frame, found)
+        out.append(Verdict("device-frame", DEVICE, i, bytes(raw), header, frame, tuple(found),
+                           None if line is None else line.i, latency, t_first, t_last))
+        return out
+
+    def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
+                    line_ended: bool = False) -> list[Verdict]:
+        """Device bytes that form no frame. A whole garbled line (ending in LF, or ``line_ended``: a
+        partial line the device never finished) inside the head line's answer window is its garbled
+        answer; bytes before a frame start are noise, never an answer."""
+        out = self._time(t_first, answer=True)
+        self._answer_since = None
+        i = self._number()
+        found = [Violation("garbage", 0, f"{len(raw)} device bytes that form no frame: "
+                           f"{show_bytes(raw)} (garbage)")]
+        head = self._queue[0] if self._queue else None
+        line = None
+        whole = raw.endswith(b"\n") or line_ended
+        if whole and head is not None and head.kind != _DISCARD and (
+                t_first is None or head.deadline is None or t_first <= head.deadline):
+            line = self._queue.popleft()
+            self._end_motion(line)
+            self._outcome_unknown(line)
+        latency = None
+        if line is not None and line.t_last is not None and t_first is not None:
+            latency = t_first - line.t_last
+        out.append(Verdict("device-junk", DEVICE, i, bytes(raw), violations=tuple(found),
+                           reply_to=None if line is None else line.i, latency_s=latency, t=t_first,
+                           t_last=t_last))
+        return out
+
+    def tick(self, now: float, answer_since: float | None = None) -> list[Verdict]:
+        """Time passes to ``now``: lines whose answer window closed get ``no-answer``. ``answer_since``:
+        a device line began at this time and is still arriving (an answer that starts in time is in
+        time)."""
+        self._last_t = now if self._last_t is None else max(self._last_t, now)
+        self._answer_since = answer_since
+        return self._expire(now)
+
+    def close(self, now: float | None = None) -> list[Verdict]:
+        """End of the data: windows closed by ``now`` (default: the last time seen) give ``no-answer``;
+        without time, every line still owed an answer does. Returns also the lines cut short (``waiting``
+        afterwards tells none is left)."""
+        self._answer_since = None
+        end = now if now is not None else self._last_t
+        out = self._expire(end) if end is not None else []
+        keep: deque[_Line] = deque()
+        for w in self._queue:
+            if w.deadline is None and w.owed:
+                out.append(self._no_answer(w, None))
+            elif w.owed:
+                keep.append(w)
+        self._queue = keep
+        return out
+
+    def host_gave_up(self, now: float | None = None) -> list[Verdict]:
+        """The host stopped waiting (the client's timeout): every line still owed an answer is
+        ``no-answer`` now."""
+        out = []
+        while self._queue:
+            w = self._queue.popleft()
+            self._end_motion(w)
+            self._outcome_unknown(w)
+            if w.owed:
+                out.append(self._no_answer(w, now))
+        return out
+
+    def cut_short(self) -> int:
+        """Lines still owed an answer whose window had not closed when the data ended; forgets them."""
+        n = sum(1 for w in self._queue if w.owed)
+        self._queue.clear()
+        self._motion = None
+        return n
+
+    # ---- pairing ----
+
+    def _number(self) -> int:
+        i = self._next_i
+        self._next_i += 1
+        return i
+
+    def _time(self, t: float | None, answer: bool = False) -> list[Verdict]:
+        if t is None:
+            return []
+        return self.tick(t, t if answer else self._answer_since)
+
+    def _enqueue(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
+                 found: list[Violation], window: float | None = None) -> _Line:
+        """Queue a host line, judging when it was sent (docs/protocol.md "Framing": strict request/answer)."""
+        what = header or "this line"
+        overlapped = False
+        if self._motion is not None:
+            kind = _DISCARD
+            found.append(_v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
+                            f"waits for its answer"))
+        else:
+            first = next((w for w in self._queue if w.owed), None)
+            if first is not None:
+                overlapped = True
+                detail = f"{what} sent before the answer to {first.name()}"
+                if first.t_last is None and t_last is None:
+                    detail += (f"; the capture has no time, so this looks the same as {first.name()} left "
+                               f"unanswered and the host going on after waiting (no-answer)")
+                found.append(_v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
+        is_move = kind == _COMMAND and header in spec.MOVE_HEADERS and frame is not None
+        waited = self.answer_window(frame) if is_move and frame is not None else self.no_answer_timeout
+        if window is not None:
+            waited = window
+        line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + waited, waited,
+                     overlapped, is_move)
+        self._queue.append(line)
+        return line
+
+    def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line]]:
+        """The line an answer belongs to, and the lines it shows were skipped (module docstring)."""
+        if not self._queue:
+            return None, []
+        sent = [w for w in self._queue if t is None or w.t_last is None or w.t_last <= t]
+        chosen: _Line | None = None
+        if header is not None and header != spec.ALARM_HEADER:
+            chosen = next((w for w in sent if w.header == header
+                           and (w.kind != _DISCARD or len(self._queue) == 1)), None)
+        if chosen is None:
+            for w in self._queue:
+                fits = header == spec.ALARM_HEADER or (w.header is not None and w.header == header)
+                if w.kind != _DISCARD or (fits and len(self._queue) == 1):
+                    chosen = w
+                    break
+        skipped: list[_Line] = []
+        while self._queue:
+            w = self._queue.popleft()
+            self._end_motion(w)
+            if w is chosen:
+                return w, skipped
+            skipped.append(w)
+            self._outcome_unknown(w)
+        return None, skipped
+
+    def _end_motion(self, w: _Line) -> None:
+        if self._motion is w:
+            self._motion = None
+
+    def _expire(self, now: float) -> list[Verdict]:
+        out: list[Verdict] = []
+        head = self._queue[0] if self._queue else None
+        if head is None or (self._answer_since is not None and head.deadline is not None
+                            and self._answer_since <= head.deadline):
+            return out
+        keep: deque[_Line] = deque()
+        for w in self._queue:
+            if w.deadline is not None and w.deadline < now:
+                self._end_motion(w)
+                self._outcome_unknown(w)
+                if w.owed:
+                    out.append(self._no_answer(w, w.deadline))
+            else:
+                keep.append(w)
+        self._queue = keep
+        return out
+
+    def _no_answer(self, w: _Line, t: float | None, skipped_by: int | None = None) -> Verdict:
+        owed = "an alarm answer (an error must be answered with one)" if w.kind == _ERROR else "its answer"
+        if skipped_by is not None:
+            when = f"the device answered a later line instead (#{skipped_by})"
+        elif t is None:
+            when = "the data ended first"
+        else:
+            when = f"nothing came within {w.waited_s:.3f} s of its last byte"
+        violation = _v("no-answer", f"{w.name()} got no answer: it is owed {owed}, but {when}")
+        return Verdict("no-answer", HOST, None, header=w.header, violations=(violation,), reply_to=w.i,
+                       t=t, waited_s=None if t is None else w.waited_s)
+
+    # ---- host duties ----
+
+    def _host_duties(self, header: str | None, error: bool) -> list[Violation]:
+        """Storm and alarm-ignored (docs/protocol.md "Behaviour the vendor text states": host duty,
+        latched alarm)."""
+        out = []
+        what = header or "this frame"
+        k = self.knowledge
+        if k.storm_run >= self.storm_limit:
+            out.append(_v("comm-error-storm", f"{what} sent after {k.storm_run} communication-error answers "
+                          f"(0%%01) in a row; the host must stop after {self.storm_limit}"))
+        good_reset = header == spec.RESET_HEADER and not error
+        if self._unreset_alarm and not good_reset:
+            out.append(_v("alarm-ignored", f"{what} sent after an alarm answer without an alarm reset (0%C)"))
+        if good_reset:
+            self._unreset_alarm = False
+        return out
+
+    # ---- the answer's rules ----
+
+    def _judge_answer(self, line: _Line | None, header: str | None, frame: Frame | None,
+                      found: list[Violation]) -> None:
+        self._storm(header, frame)
+        if isinstance(frame, AlarmAnswer):
+            self._alarm(line, frame.code, found)
+            return
+        if header is None or frame is None or header == spec.ALARM_HEADER:
+            if line is not None:
+                self._outcome_unknown(line)
+            return
+        if line is None:
+            return  # unsolicited: nothing it says is trusted
+        if line.kind == _ERROR:
+            found.append(_v("error-accepted", f"{header} answer to {line.name()}, which breaks the frame "
+                            f"table: an error is answered with an alarm answer (0%%Ec)"))
+            self._outcome_unknown(line)
+            return
+        if header == spec.RESET_HEADER and line.is_reset:
+            self._reset_done(found)
+            return
+        self._latch_on_normal_answer(line, found)
+        clean = self._pairing(line, header, frame, found) and not _is_error(found)
+        if clean and line.frame is not None:
+            self._learn(line.frame, frame, found)
+        else:
+            self._outcome_unknown(line)
+
+    def _storm(self, header: str | None, frame: Frame | None) -> None:
+        """The storm run (host duty): ``0%%01`` answers count, the reset answer neither counts nor ends
+        it, any other answer (even with a framing fault) ends it. An unreadable line does neither."""
+        k = self.knowledge
+        if isinstance(frame, AlarmAnswer):
+            k.storm_run = k.storm_run + 1 if frame.code == spec.ALARM_COMM else 0
+        elif header is not None and header not in (spec.ALARM_HEADER, spec.RESET_HEADER):
+            k.storm_run = 0
+
+    def _alarm(self, line: _Line | None, code: int, found: list[Violation]) -> None:
+        """An alarm answer: it latches (00 latches nothing, silent item 12); a latched code never changes
+        but to emergency stop; a reset clears all but 0E; a refused command takes no effect (item 18)."""
+        k = self.knowledge
+        latched = k.latched.value
+        if line is not None and line.is_reset and code != spec.ALARM_ESTOP:
+            found.append(_v("latch-broken", f"the alarm reset {line.name()} was answered with alarm "
+                            f"{code:02X}: 0%C clears every alarm but emergency stop (0E) and answers 0%C00"))
+        elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged:
+            found.append(_v("latch-broken", f"alarm {latched:02X} is latched, but the answer is alarm "
+                            f"{code:02X}: a latched alarm is repeated until a reset"))
+        if code != spec.ALARM_NONE:
+            k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
+            if line is None or not line.is_reset:
+                self._unreset_alarm = True
+        if code == spec.ALARM_ESTOP:
+            k.position = Fact()
+        if line is not None:
+            self._end_motion(line)
+            if line.is_move:
+                k.position = Fact()  # it may have stopped anywhere (item 19)
+
+    def _reset_done(self, found: list[Violation]) -> None:
+        """0%C answered 0%C00: every alarm but 0E clears. Whether 0E was still on is known only where the
+        stop input is known (silent item 3); from the line alone the release happened unseen."""
+        k = self.knowledge
+        if k.stop_pressed.value is True and k.stop_pressed.status == KNOWN:
+            found.append(_v("estop-cleared", "the alarm reset answered 0%C00 while the emergency stop input "
+                            "is pressed: emergency stop (0E) stays latched until the input is released"))
+            return  # the device is wrong; the stop is still on
+        if k.latched.value == spec.ALARM_ESTOP:
+            k.homed, k.position = Fact(), Fact()  # released unseen: what the axis does is item 3
+        k.latched = Fact(None, KNOWN)
+
+    def _latch_on_normal_answer(self, line: _Line, found: list[Violation]) -> None:
+        k = self.knowledge
+        latched = k.latched.value
+        if latched is None or line.is_reset:
+            return
+        if latched == spec.ALARM_ESTOP and not (k.stop_pressed.value is True
+                                                and k.stop_pressed.status == KNOWN):
+            k.latched = Fact(None, KNOWN)  # the stop input was released (silent item 3)
+            k.homed, k.position = Fact(), Fact()
+            return
+        found.append(_v("latch-broken", f"{line.header} got a normal answer while alarm {latched:02X} "
+                        f"({spec.alarm_meaning(latched)}) should still be latched"))
+
+    def _pairing(self, line: _Line, header: str, frame: Frame, found: list[Violation]) -> bool:
+        """Answer-mismatch and echo-mismatch (docs/protocol.md "Frames"; echoes judged by fields, never
+        bytes). True when the answer fits its command."""
+        cmd = line.frame
+        if line.header is None or cmd is None:
+            return True
+        if header != line.header:
+            found.append(_v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
+            return False
+        mine, theirs = frame.fields(), cmd.fields()
+        if frame.frame_spec().echo:
+            if mine != theirs:
+                diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
+                                 for k, v in mine.items() if theirs.get(k) != v)
+                found.append(_v("echo-mismatch", f"{header} echo differs from the command {line.name()}: "
+                                f"{diff}"))
+                return False
+        elif "n" in theirs and "n" in mine and mine["n"] != theirs["n"]:
+            found.append(_v("answer-mismatch", f"{header} answer for N={mine['n']:X} to the command "
+                            f"{line.name()} for N={theirs['n']:X}", _CODES))
+            return False
+        return True
+
+    # ---- knowledge and read-back ----
+
+    def _readback(self, found: list[Violation], what: str, seen: object, fact: Fact[T], how: str) -> None:
+        found.append(_v("readback-mismatch", f"{what} reads back {seen}, but the conversation "
+                        f"{'established' if fact.status == KNOWN else 'read earlier'} {how}"))
+
+    def _learn(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """What a clean exchange establishes, and the read-backs it is judged against."""
+        k = self.knowledge
+        k.mode = Fact(getattr(c, "mode", 1), KNOWN)  # silent item 11: communicating gives mode 1
+        if isinstance(a, ReadPointAnswer):
+            self._read_point(a, found)
+        elif c.header == "0WP":
+            k.points[c.n] = Fact(PointData(c.v, c.a, c.o, c.pos), KNOWN)  # type: ignore[attr-defined]
+        elif isinstance(a, ReadCurrentAnswer):
+            self._read_current(a, found)
+        elif isinstance(a, StoreCurrentAnswer):
+            pos = k.position
+            if pos.judged and a.pos != pos.value:
+                self._readback(found, f"0WC{a.n:X}'s Pos", f"{a.pos:06X}", pos,
+                               f"the axis at {pos.value:06X}")
+            k.points[a.n] = Fact(PointData(a.v, a.a, a.o, a.pos), LEARNT)  # V, A, O: silent item 4
+        elif isinstance(c, MovePoint):
+            k.homed = Fact(True, KNOWN)
+            point = k.point(c.n)
+            k.position = Fact(point.value.pos, point.status) if c.n and point.value is not None else Fact()
+            if c.n:
+                k.outputs = Fact()  # silent item 8
+        elif isinstance(c, MoveDirect):
+            k.homed, k.position = Fact(True, KNOWN), Fact(c.pos, KNOWN)
+        elif isinstance(a, ReadOutputsAnswer):
+            if k.outputs.judged and a.o != k.outputs.value:
+                self._readback(found, "0RS's O", a.o, k.outputs, f"O={k.outputs.value}")
+            else:
+                k.outputs = Fact(a.o, LEARNT)
+        elif c.header == "0WS":
+            k.outputs = Fact(c.o, KNOWN)  # type: ignore[attr-defined]
+        elif isinstance(a, ReadVersionAnswer):
+            if k.version.judged and a.version != k.version.value:
+                self._readback(found, "0RV", a.version, k.version, f"version {k.version.value}")
+            else:
+                k.version = Fact(a.version, LEARNT)
+
+    def _read_point(self, a: ReadPointAnswer, found: list[Violation]) -> None:
+        k = self.knowledge
+        seen = PointData(a.v, a.a, a.o, a.pos)
+        fact = k.point(a.n)
+        if fact.value is not None and seen != fact.value:
+            self._readback(found, f"point {a.n:X}", seen.show(), fact, fact.value.show())
+        elif fact.value is None:
+            k.points[a.n] = Fact(seen, LEARNT)
+
+    def _read_current(self, a: ReadCurrentAnswer, found: list[Violation]) -> None:
+        """0RC: before homing N, V, A 0 and Pos FFFFFF (stated); after a move, where the move went."""
+        k = self.knowledge
+        unknown = a.pos == spec.UNKNOWN_POSITION
+        if k.homed.value is False and k.homed.judged:
+            if (a.n, a.v, a.a, a.pos) != (0, 0, 0, spec.UNKNOWN_POSITION):
+                self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", k.homed,
+                               "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)")
+            return
+        if unknown:
+            if k.homed.value is True and k.homed.judged:
+                self._readback(found, "0RC", "Pos FFFFFF (not homed)", k.homed, "the axis homed")
+                return
+            k.homed, k.position = Fact(False, LEARNT), Fact()
+            return
+        if k.position.judged and a.pos != k.position.value:
+            self._readback(found, "0RC's Pos", f"{a.pos:06X}", k.position,
+                           f"the axis at {k.position.value:06X}")
+            return
+        k.homed = Fact(True, k.homed.status if k.homed.value else LEARNT)
+        k.position = Fact(a.pos, k.position.status if k.position.judged else LEARNT)
+
+    def _outcome_unknown(self, line: _Line) -> None:
+        """A line whose answer is missing, garbled or faulty: what it would change is unknown now."""
+        k = self.knowledge
+        c = line.frame
+        if line.is_move or isinstance(c, (MovePoint, MoveDirect)):
+            k.position = Fact()
+            if k.homed.value is not True:
+                k.homed = Fact()
+        if c is None:
+            return
+        if c.header in ("0WP", "0WC") and hasattr(c, "n"):
+            k.points.pop(c.n, None)
+        elif c.header == "0WS" or (isinstance(c, MovePoint) and c.n):
+            k.outputs = Fact()
+        elif c.header == "0CM":
+            k.mode = Fact()
+        elif line.is_reset:
+            k.latched = Fact()
+
+    # ---- move time (silent items 15, 17) ----
+
+    def move_time(self, command: Frame) -> float:
+        """Seconds a move (0MP/0MV) may take at worst, homing included; 0 for other commands. Whatever is
+        unknown is taken at its worst: an unknown start homes from the far end of the stroke first, an
+        unknown point is as far away as the stroke allows at the slowest speed."""
+        s, k = self.speeds, self.knowledge
+        start = k.position.value if k.homed.value is not False else None
+        t = 0.0
+        if start is None:
+            t += motion.move_time(STROKE_END, s.homing_pps, s.homing_accel)
+            start = 0
+        if isinstance(command, MoveDirect):
+            return t + motion.move_time(command.pos - start, s.direct_speed(command.vel), command.a)
+        if isinstance(command, MovePoint):
+            if command.n == 0:
+                return t + motion.move_time(start, s.homing_pps, s.homing_accel)
+            point = k.point(command.n).value
+            if point is None:
+                far = max(start, STROKE_END - start)
+                return t + motion.move_time(far, s.point_speed(1), 1)
+            return t + motion.move_time(point.pos - start, s.point_speed(point.v), point.a)
+        return t
+
+
+def point_of(answer: Frame) -> PointData | None:
+    """The point data an answer carries (0RP, 0WP, 0WC, 0MP answers), else None."""
+    if isinstance(answer, PointAnswer):
+        return PointData(answer.v, answer.a, answer.o, answer.pos)
+    return None
+
+
+__all__ = ["Conversation", "Fact", "Knowledge", "PointData", "Verdict", "header_of", "side_of",
+           "KNOWN", "LEARNT", "UNKNOWN"]
