@@ -243,7 +243,7 @@ def write_recording(path: Path, frames_wanted: int) -> None:
             elif k % 1000 == 0 and k:
                 command, answer = b"0%C\r\n", b"0%C00\r\n"
             elif k % 3 == 0:
-                command, answer = b"0RC\r\n", b"0RC00002%06X\r\n" % (k % 0x10000)
+                command, answer = b"0RC\r\n", b"0RC00002001234\r\n"  # the axis stays put
             else:
                 command, answer = b"0RV\r\n", b"0RV100\r\n"
             answered = t + 0.012 + (k % 7) * 0.001

@@ -240,6 +240,12 @@ class SessionAggregator:
                 self._host_frame(record, x, kept)
             else:
                 self._device_frame(record, x, kept)
+        elif record.dir == "host" and record.raw.endswith(spec.FRAME_END):
+            # a junk line: the device owes it an alarm answer (docs/protocol.md "Behaviour the vendor
+            # text states"), so the rulebook may say no-answer for it
+            self._waiting[record.i] = _Command(x, record.t, None, None, kept)
+            if len(self._waiting) > self.limits.waiting:
+                del self._waiting[next(iter(self._waiting))]
 
     def _x(self, record: Record) -> float:
         """Where a record goes on the time axis: its time, or its number in a capture without time."""
