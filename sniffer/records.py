@@ -210,9 +210,10 @@ class Tally:
     _headers: dict[int, str] = field(default_factory=dict)  # host frame i -> header
 
     def add(self, record: Record) -> None:
-        self.violations.update(record.violations)
-        for code, side in zip(record.violations, sides_of(record), strict=True):
-            self.by_side[side][code] += 1
+        if record.violations:  # most records have none: skip the counters' per-call overhead
+            self.violations.update(record.violations)
+            for code, side in zip(record.violations, sides_of(record), strict=True):
+                self.by_side[side][code] += 1
         if isinstance(record, FrameRecord):
             self.frames[record.dir] += 1
             self.bytes[record.dir] += len(record.raw)

@@ -33,6 +33,10 @@ _O: Final = spec.LETTER_O[0]
 _LF: Final = spec.LF
 _UNDECIDED: Final = -2
 _START_BYTE: Final = re.compile(b"[" + re.escape(spec.LEAD + spec.LETTER_O) + b"]")
+assert all(len(t) == 2 for t in _TAILS), "a full header is a start byte and a two-byte tail"
+# a full header (what ``_strong_start`` calls 1), as one pattern: one C-level search per frame
+_STRONG: Final = re.compile(_START_BYTE.pattern + b"(?:" + b"|".join(re.escape(t) for t in sorted(_TAILS))
+                            + b")")
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,13 +145,17 @@ class Framer:
         buf = self._buf
         lf = buf.find(_LF, 0, self.max_frame)
         limit = lf if lf >= 0 else min(len(buf), self.max_frame)
-        # only a 0 or an O can start a header (the list releases the buffer before buf is resized)
-        for p in [m.start() for m in _START_BYTE.finditer(buf, 1, limit)]:
-            found = _strong_start(buf, p)
-            if found == 1:
-                return self._emit(p, "truncated")
-            if found == _UNDECIDED and not final:
-                return None
+        # the first full header after the start byte and before ``limit`` cuts this frame short; a
+        # start byte in the last two bytes of the buffer cannot be decided yet (its tail is not in).
+        # Every decidable start comes before every undecided one, so searching the decidable ones
+        # first keeps the byte-by-byte order of the rule.
+        strong = _STRONG.search(buf, 1, limit + 2)
+        if strong is not None:
+            return self._emit(strong.start(), "truncated")
+        if not final:
+            for p in range(max(1, len(buf) - 2), limit):
+                if _strong_start(buf, p) == _UNDECIDED:
+                    return None
         if lf >= 0:
             return self._emit(lf + 1, None)
         if len(buf) >= self.max_frame:
