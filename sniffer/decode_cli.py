@@ -288,7 +288,7 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False)
                                              analyzer.conversation.no_answer_timeout)
         except ReportError as exc:
             return _error(str(exc))
-    view = make_view("text" if args.format == "summary" else args.format, sys.stdout, args.color)
+    view = make_view("text" if args.format == "summary" else args.format, sys.stdout, args.color, live=False)
     show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
     report = capture.report
     violations = 0

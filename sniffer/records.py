@@ -11,6 +11,7 @@ builds them and the views print them.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections import Counter
@@ -19,6 +20,9 @@ from typing import Any
 
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
+
+
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> its field names (Frame.fields' order)
 
 
 def _round_t(t: float | None) -> float | None:
@@ -66,7 +70,14 @@ class FrameRecord:
 
     @property
     def fields(self) -> dict[str, Any] | None:
-        return None if self.frame is None else self.frame.fields()
+        """``frame.fields()``: the field values by name in wire order (names looked up once a class)."""
+        frame = self.frame
+        if frame is None:
+            return None
+        names = _FIELD_NAMES.get(type(frame))
+        if names is None:
+            names = _FIELD_NAMES[type(frame)] = tuple(f.name for f in dataclasses.fields(frame))
+        return {name: getattr(frame, name) for name in names}
 
     @property
     def latency_ms(self) -> float | None:

@@ -44,14 +44,17 @@ def show_time(t: float | None) -> str:
 
 
 class JsonlView:
-    """One JSON object a line (the README's schema), flushed as it goes."""
+    """One JSON object a line (the README's schema), flushed as it goes when ``live`` (the sniffer);
+    an offline decode (``live=False``) leaves buffering to the stream and flushes after the summary."""
 
-    def __init__(self, stream: IO[str]) -> None:
+    def __init__(self, stream: IO[str], live: bool = True) -> None:
         self.stream = stream
+        self.live = live
 
     def write(self, record: Record) -> None:
         self.stream.write(record.to_json() + "\n")
-        self.stream.flush()
+        if self.live:
+            self.stream.flush()
 
     def summary(self, summary: dict[str, Any]) -> None:
         self.stream.write(summary_json(summary) + "\n")
@@ -153,10 +156,10 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-def make_view(fmt: str, stream: IO[str], color: bool | None = None) -> View:
-    """The sink for ``--format``: ``text`` or ``jsonl``."""
+def make_view(fmt: str, stream: IO[str], color: bool | None = None, live: bool = True) -> View:
+    """The sink for ``--format``: ``text`` or ``jsonl`` (``live``: flush every record)."""
     if fmt == "jsonl":
-        return JsonlView(stream)
+        return JsonlView(stream, live)
     if fmt == "text":
         return TextView(stream, color)
     raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
