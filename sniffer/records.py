@@ -21,7 +21,6 @@ from typing import Any
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
 
-
 _FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> its field names (Frame.fields' order)
 
 

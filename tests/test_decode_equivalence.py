@@ -8,7 +8,9 @@ Optimized pieces (issue 14) and their references below:
 - ``sniffer.analyzer.to_record`` and ``Analyzer._line_errors``: no per-violation work on clean verdicts;
 - ``Tally.add``: no counter updates for records without violations;
 - ``FrameRecord.fields``: field names looked up once a frame class (was ``Frame.fields()``);
-- ``sniffer.io.base.wallclock``: the whole local second cached (socat headers).
+- ``sniffer.io.base.wallclock``: the whole local second cached (socat headers);
+- ``fastcodec.decode_clean``: the last distinct clean frames remembered (frames are immutable);
+- ``conversation._fields``: ``Frame.fields()`` with the names looked up once a class.
 
 Conversations: well-formed frames of every kind, the lines of docs/protocol.md's rule examples (every
 violation code), letter O, lower case, bad lengths and terminators, junk, and timing edges around the
@@ -42,6 +44,9 @@ from sniffer.io.base import Report, shown
 from sniffer.io.registry import Capture
 from sniffer.records import FrameRecord, JunkRecord, Record, TimeoutRecord, sides_of
 from sniffer.view import TextView, violation_lines
+from xac1_proto import codec as codec_mod
+from xac1_proto import conversation as conversation_mod
+from xac1_proto import fastcodec as fastcodec_mod
 from xac1_proto import framer as framer_mod
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.conversation import Verdict
@@ -138,6 +143,10 @@ def _reference_tally_add(self: records_mod.Tally, record: Record) -> None:
         self.line_errors += bool(record.line_errors)
 
 
+def _reference_record_fields(self: FrameRecord) -> dict[str, object] | None:
+    return None if self.frame is None else self.frame.fields()
+
+
 def _reference_wallclock(date: str, clock: str) -> float:
     try:
         y, m, d = (int(x) for x in date.replace("/", "-").split("-"))
@@ -159,8 +168,9 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(analyzer_mod, "to_record", _reference_to_record))
         stack.enter_context(mock.patch.object(Analyzer, "_line_errors", _reference_line_errors))
         stack.enter_context(mock.patch.object(records_mod.Tally, "add", _reference_tally_add))
-        stack.enter_context(mock.patch.object(
-            FrameRecord, "fields", property(lambda self: None if self.frame is None else self.frame.fields())))
+        stack.enter_context(mock.patch.object(FrameRecord, "fields", property(_reference_record_fields)))
+        stack.enter_context(mock.patch.object(codec_mod, "decode_clean", fastcodec_mod._decode_clean))
+        stack.enter_context(mock.patch.object(conversation_mod, "_fields", lambda frame: frame.fields()))
         stack.enter_context(mock.patch.object(socat_mod, "wallclock", _reference_wallclock))
         yield
 
@@ -171,6 +181,7 @@ def test_reference_is_really_swapped_in():
     with reference():
         assert framer_mod.Framer._frame_candidate is not optimized
         assert pcap_mod._Buffer is _ReferenceBuffer and socat_mod.wallclock is _reference_wallclock
+        assert codec_mod.decode_clean is fastcodec_mod._decode_clean
     assert framer_mod.Framer._frame_candidate is optimized and pcap_mod._Buffer is not _ReferenceBuffer
 
 
@@ -213,7 +224,8 @@ def chunks_of(items: list[tuple[str, bytes]], dts: list[float], sizes: list[int]
             piece = data[p:p + size]
             p += size
             t += len(piece) / 960
-            out.append(Chunk(t if timed else None, who, piece, "UART framing error" if n in flagged else None))
+            error = "UART framing error" if n in flagged else None
+            out.append(Chunk(t if timed else None, who, piece, error))
     return out
 
 
