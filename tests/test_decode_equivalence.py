@@ -3,7 +3,7 @@ it replaced, kept here as a small reference (``_reference_*``), on generated con
 
 Optimized pieces (issue 14) and their references below:
 - ``Framer._frame_candidate``: one generated regex search for a cutting header (was a loop over every
-  start byte);
+  start byte); ``Framer.feed``: a chunk that is exactly one frame, with nothing held, goes straight out;
 - ``sniffer.io.pcap._Buffer``: slices of one block (was a bytearray copied on every peek);
 - ``sniffer.analyzer.to_record`` and ``Analyzer._line_errors``: no per-violation work on clean verdicts;
 - ``Tally.add``: no counter updates for records without violations;
@@ -71,6 +71,14 @@ def _reference_frame_candidate(self: framer_mod.Framer, final: bool) -> framer_m
     if len(buf) >= self.max_frame:
         return self._emit(self.max_frame, "overflow")
     return self._emit(len(buf), "flushed") if final else None
+
+
+def _reference_feed(self: framer_mod.Framer, data: bytes, t: float | None = None) -> list[framer_mod.Event]:
+    if data:
+        self._buf += data
+        self._ends.append(self.bytes_in)
+        self._times.append(t)
+    return self._drain(final=False)
 
 
 class _ReferenceBuffer:
@@ -164,6 +172,7 @@ def reference() -> Iterator[None]:
     with contextlib.ExitStack() as stack:
         stack.enter_context(mock.patch.object(framer_mod.Framer, "_frame_candidate",
                                               _reference_frame_candidate))
+        stack.enter_context(mock.patch.object(framer_mod.Framer, "feed", _reference_feed))
         stack.enter_context(mock.patch.object(pcap_mod, "_Buffer", _ReferenceBuffer))
         stack.enter_context(mock.patch.object(analyzer_mod, "to_record", _reference_to_record))
         stack.enter_context(mock.patch.object(Analyzer, "_line_errors", _reference_line_errors))

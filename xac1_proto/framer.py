@@ -64,7 +64,7 @@ class Junk:
 Event = FrameBytes | Junk
 
 
-def _strong_start(buf: bytearray, p: int) -> int:
+def _strong_start(buf: bytes | bytearray, p: int) -> int:
     """1 if a full header (``0``/``O`` + known tail) starts at p, 0 if not, _UNDECIDED if the
     buffer ends before that is known."""
     if buf[p] not in (_ZERO, _O):
@@ -77,7 +77,7 @@ def _strong_start(buf: bytearray, p: int) -> int:
     return 0
 
 
-def _weak_start(buf: bytearray, p: int) -> int:
+def _weak_start(buf: bytes | bytearray, p: int) -> int:
     """1 if a frame may start at p (``0`` + a letter or ``%``, or ``O`` + a known tail)."""
     b = buf[p]
     if b == _ZERO:
@@ -113,11 +113,23 @@ class Framer:
 
     def feed(self, data: bytes, t: float | None = None) -> list[Event]:
         """Take the next bytes of the stream (all received at time ``t``); the events they complete."""
+        if not self._buf and data and self._whole_line(data):  # the common chunk: one frame, nothing held
+            offset = self._base
+            self._base += len(data)
+            return [FrameBytes(bytes(data), offset, t, t)]
         if data:
             self._buf += data
             self._ends.append(self.bytes_in)
             self._times.append(t)
         return self._drain(final=False)
+
+    def _whole_line(self, data: bytes) -> bool:
+        """Is ``data`` exactly one frame candidate the general path would emit whole: a frame start,
+        its only LF last, within ``max_frame``, no full header after its first byte? (With the LF last,
+        no start byte is left undecided.)"""
+        n = len(data)
+        return (n <= self.max_frame and data[-1] == _LF and data.find(_LF) == n - 1
+                and _weak_start(data, 0) == 1 and _STRONG.search(data, 1) is None)
 
     def flush(self) -> list[Event]:
         """End of data (or an idle line): what is pending comes out, a partial frame as junk."""
