@@ -15,6 +15,7 @@ from typing import IO, Any, Protocol
 
 from rich.console import Console
 from rich.markup import escape
+from rich.text import Text
 
 from xac1_proto import spec
 
@@ -67,13 +68,26 @@ class TextView:
     def __init__(self, stream: IO[str], color: bool | None = None) -> None:
         self.console = Console(file=stream, force_terminal=color, no_color=color is False,
                                highlight=False, soft_wrap=True)
+        self.stream = stream
+        # no colour system (a file, a pipe, --no-color): a line is its markup's plain text, which rich
+        # makes the same way without the console's per-print rendering
+        self._plain = self.console.color_system is None
+
+    def _print(self, markup: str) -> None:
+        """One line: what ``console.print(markup)`` prints."""
+        if self._plain:
+            plain = Text.from_markup(markup).plain
+            if "\t" not in plain:  # tabs the console expands: left to it
+                self.stream.write(plain + "\n")
+                return
+        self.console.print(markup)
 
     def write(self, record: Record) -> None:
-        self.console.print(self.line(record))
+        self._print(self.line(record))
         for line in violation_lines(record):
-            self.console.print(line)
+            self._print(line)
         for error in getattr(record, "line_errors", ()):
-            self.console.print(f"      [magenta]! line error: {escape(error)}[/]")
+            self._print(f"      [magenta]! line error: {escape(error)}[/]")
 
     def line(self, record: Record) -> str:
         when = show_time(record.t)

@@ -10,7 +10,8 @@ Optimized pieces (issue 14) and their references below:
 - ``FrameRecord.fields``: field names looked up once a frame class (was ``Frame.fields()``);
 - ``sniffer.io.base.wallclock``: the whole local second cached (socat headers);
 - ``fastcodec.decode_clean``: the last distinct clean frames remembered (frames are immutable);
-- ``conversation._fields``: ``Frame.fields()`` with the names looked up once a class.
+- ``conversation._fields``: ``Frame.fields()`` with the names looked up once a class;
+- ``TextView._print``: without colour, a line is its markup's plain text (was ``console.print``).
 
 Conversations: well-formed frames of every kind, the lines of docs/protocol.md's rule examples (every
 violation code), letter O, lower case, bad lengths and terminators, junk, and timing edges around the
@@ -43,7 +44,7 @@ from sniffer.io import socat as socat_mod
 from sniffer.io.base import Report, shown
 from sniffer.io.registry import Capture
 from sniffer.records import FrameRecord, JunkRecord, Record, TimeoutRecord, sides_of
-from sniffer.view import TextView, violation_lines
+from sniffer.view import TextView
 from xac1_proto import codec as codec_mod
 from xac1_proto import conversation as conversation_mod
 from xac1_proto import fastcodec as fastcodec_mod
@@ -181,6 +182,7 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(codec_mod, "decode_clean", fastcodec_mod._decode_clean))
         stack.enter_context(mock.patch.object(conversation_mod, "_fields", lambda frame: frame.fields()))
         stack.enter_context(mock.patch.object(socat_mod, "wallclock", _reference_wallclock))
+        stack.enter_context(mock.patch.object(TextView, "_print", lambda self, markup: self.console.print(markup)))
         yield
 
 
@@ -200,7 +202,8 @@ def test_reference_is_really_swapped_in():
 HOST_LINES = [b"0RP3\r\n", b"0WP19302012345\r\n", b"0RV\r\n", b"ORV\r\n", b"0%C\r\n", b"0rv\r\n",
               b"0WP1930201abcd\r\n", b"0WS12\r\n", b"0RP3\n", b"0XX\r\n", b"0RP3\r\r\n", b"\x01\x02\r\n",
               b"0RS\r\n", b"0MV3C3001000\r\n", b"0MP5\r\n", b"0RC\r\n", b"0WS32\r\n", b"0CM1\r\n",
-              b"0CM0\r\n", b"0WC01\r\n", b"ORP3\r\n", b"0R", b"\r\n", b"0RP30RP3\r\n", b"0" * 70]
+              b"0CM0\r\n", b"0WC01\r\n", b"ORP3\r\n", b"0R", b"\r\n", b"0RP30RP3\r\n", b"0" * 70,
+              b"[bold]:smile:\t\\[x]\r\n", b"0RV:thumbs_up:\r\n"]
 DEVICE_LINES = [b"0RP39302012345\r\n", b"0WP19302012345\r\n", b"0RV100\r\n", b"ORV100\r\n", b"0%%01\r\n",
                 b"0%C00\r\n", b"0WS22\r\n", b"0RP49302012345\r\n", b"0%%08\r\n", b"0RC00002000000\r\n",
                 b"\xb0RV1\r\n", b"0RS02\r\n", b"0MV3C3001000\r\n", b"0RV100 \r\n", b"0RP39302abcdef\r\n",
@@ -247,9 +250,15 @@ def library_outputs(chunks: list[Chunk], close_at: float | None = None) -> tuple
     for chunk in chunks:
         records += analyzer.feed(chunk)
     records += analyzer.close(close_at)
-    text = TextView(io.StringIO(), color=False)
-    lines = [(text.line(r), violation_lines(r)) for r in records]
-    return records, [r.to_json() for r in records], lines, analyzer.summary()
+    printed = []
+    for color in (None, False):  # a file or pipe, and --no-color: both plain
+        stream = io.StringIO()
+        text = TextView(stream, color=color)
+        for r in records:
+            text.write(r)
+        text.summary(analyzer.summary())
+        printed.append(stream.getvalue())
+    return records, [r.to_json() for r in records], printed, analyzer.summary()
 
 
 def assert_library_equal(chunks: list[Chunk], close_at: float | None = None) -> None:
@@ -258,7 +267,7 @@ def assert_library_equal(chunks: list[Chunk], close_at: float | None = None) -> 
         expected = library_outputs(chunks, close_at)
     assert optimized[0] == expected[0]  # records, field by field (frames included)
     assert optimized[1] == expected[1]  # JSON lines
-    assert optimized[2] == expected[2]  # text view lines
+    assert optimized[2] == expected[2]  # the text view as printed
     assert optimized[3] == expected[3]  # summary
 
 
