@@ -156,6 +156,10 @@ def _reference_record_fields(self: FrameRecord) -> dict[str, object] | None:
     return None if self.frame is None else self.frame.fields()
 
 
+def _reference_print(self: TextView, markup: str) -> None:
+    self.console.print(markup)
+
+
 def _reference_wallclock(date: str, clock: str) -> float:
     try:
         y, m, d = (int(x) for x in date.replace("/", "-").split("-"))
@@ -182,7 +186,7 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(codec_mod, "decode_clean", fastcodec_mod._decode_clean))
         stack.enter_context(mock.patch.object(conversation_mod, "_fields", lambda frame: frame.fields()))
         stack.enter_context(mock.patch.object(socat_mod, "wallclock", _reference_wallclock))
-        stack.enter_context(mock.patch.object(TextView, "_print", lambda self, markup: self.console.print(markup)))
+        stack.enter_context(mock.patch.object(TextView, "_print", _reference_print))
         yield
 
 
