@@ -143,6 +143,8 @@ class Analyzer:
 
     def _line_errors(self, direction: str, offset: int, length: int) -> tuple[str, ...]:
         ranges = self._errors[direction]
+        if not ranges:  # the usual capture: no line errors at all
+            return ()
         while ranges and ranges[0][1] <= offset:
             ranges.pop(0)
         return tuple(e for start, end, e in ranges if start < offset + length and end > offset)
@@ -150,20 +152,24 @@ class Analyzer:
 
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
     """The record of one verdict (README "Sniffer" schema)."""
-    details = tuple(x.message for x in v.violations)
+    if v.violations:
+        details = tuple(x.message for x in v.violations)
+        codes, sides = v.codes, v.sides
+    else:  # the clean frame: the same empty tuples, without the generators
+        details = codes = sides = ()
     if v.kind == "no-answer":
         assert v.reply_to is not None
         return TimeoutRecord(command=v.reply_to, t=v.t, header=v.header, waited_s=v.waited_s,
-                             details=details, sides=v.sides)
+                             details=details, sides=sides)
     assert v.i is not None
     direction: Direction = v.sender
     if v.kind in ("host-junk", "device-junk"):
         return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=reason or "flushed",
-                          violations=v.codes, details=details, line_errors=line_errors, sides=v.sides,
+                          violations=codes, details=details, line_errors=line_errors, sides=sides,
                           reply_to=v.reply_to, latency_s=v.latency_s)
     return FrameRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, header=v.header, frame=v.frame,
-                       violations=v.codes, details=details, reply_to=v.reply_to, latency_s=v.latency_s,
-                       t_last=v.t_last, line_errors=line_errors, sides=v.sides,
+                       violations=codes, details=details, reply_to=v.reply_to, latency_s=v.latency_s,
+                       t_last=v.t_last, line_errors=line_errors, sides=sides,
                        window_s=v.waited_s if v.kind == "host-frame" else None)
 
 

@@ -116,6 +116,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also write an HTML session report to FILE (needs the 'report' extra)")
     p.add_argument("--annotate", metavar="OUT.pcapng", default=None,
                    help="also write the capture as pcapng for Wireshark, every verdict as a packet comment")
+    p.add_argument("--batch", action="store_true",
+                   help="an archive: each FILE is a directory, a file or a glob pattern, every file one "
+                        "conversation, decoded in its own process; prints a summary row per file and a total")
+    p.add_argument("--jobs", "-j", type=_count, metavar="N", default=None,
+                   help="--batch: files decoded at once (default: the cores)")
 
 
 
@@ -124,9 +129,14 @@ def _error(message: str) -> int:
     return 2
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, summaries: list[dict[str, Any]] | None = None) -> int:
+    """Decode; ``summaries``: collect the summary record (with the format) instead of printing it."""
     from .io.base import FormatError, Report
     from .io.registry import Capture
+
+    if getattr(args, "batch", False):
+        from .decode_batch import run as run_batch
+        return run_batch(args)
 
     report = Report()
     sources: list[Source] = []
@@ -137,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
         fmt, one_sided = _choose_format(sources, args, report)
         with Capture(sources, fmt, host_is=args.host_is, samplerate=args.samplerate,
                      report=report) as capture:
-            return _decode(capture, args, one_sided)
+            return _decode(capture, args, one_sided, summaries)
     except FormatError as exc:
         return _error(str(exc))
     except BrokenPipeError:  # output piped into head & co.
@@ -266,7 +276,8 @@ def _partner(path: str) -> str | None:
 
 # ---- output ----
 
-def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False) -> int:
+def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
+            summaries: list[dict[str, Any]] | None = None) -> int:
     from .analyzer import Analyzer
     from .io.base import WrongFormat
     from .records import Tally
@@ -288,7 +299,7 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False)
                                              analyzer.conversation.no_answer_timeout)
         except ReportError as exc:
             return _error(str(exc))
-    view = make_view("text" if args.format == "summary" else args.format, sys.stdout, args.color)
+    view = make_view("text" if args.format == "summary" else args.format, sys.stdout, args.color, live=False)
     show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
     report = capture.report
     violations = 0
@@ -332,7 +343,10 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False)
         summary["problem_messages"] = report.problems[:SUMMARY_PROBLEMS]
     if report.notes:
         summary["notes"] = list(report.notes)
-    view.summary(summary)
+    if summaries is None:
+        view.summary(summary)
+    else:
+        summaries.append({"format": capture.format, **summary})
     if html_report is not None:
         print(f"xac1 decode: report written to {html_report.write(summary)}", file=sys.stderr)
     empty = not (analyzer.bytes_in("host") or analyzer.bytes_in("device"))

@@ -11,6 +11,7 @@ builds them and the views print them.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections import Counter
@@ -19,6 +20,8 @@ from typing import Any
 
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
+
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> its field names (Frame.fields' order)
 
 
 def _round_t(t: float | None) -> float | None:
@@ -66,7 +69,14 @@ class FrameRecord:
 
     @property
     def fields(self) -> dict[str, Any] | None:
-        return None if self.frame is None else self.frame.fields()
+        """``frame.fields()``: the field values by name in wire order (names looked up once a class)."""
+        frame = self.frame
+        if frame is None:
+            return None
+        names = _FIELD_NAMES.get(type(frame))
+        if names is None:
+            names = _FIELD_NAMES[type(frame)] = tuple(f.name for f in dataclasses.fields(frame))
+        return {name: getattr(frame, name) for name in names}
 
     @property
     def latency_ms(self) -> float | None:
@@ -210,9 +220,10 @@ class Tally:
     _headers: dict[int, str] = field(default_factory=dict)  # host frame i -> header
 
     def add(self, record: Record) -> None:
-        self.violations.update(record.violations)
-        for code, side in zip(record.violations, sides_of(record), strict=True):
-            self.by_side[side][code] += 1
+        if record.violations:  # most records have none: skip the counters' per-call overhead
+            self.violations.update(record.violations)
+            for code, side in zip(record.violations, sides_of(record), strict=True):
+                self.by_side[side][code] += 1
         if isinstance(record, FrameRecord):
             self.frames[record.dir] += 1
             self.bytes[record.dir] += len(record.raw)

@@ -15,6 +15,7 @@ from typing import IO, Any, Protocol
 
 from rich.console import Console
 from rich.markup import escape
+from rich.text import Text
 
 from xac1_proto import spec
 
@@ -44,14 +45,17 @@ def show_time(t: float | None) -> str:
 
 
 class JsonlView:
-    """One JSON object a line (the README's schema), flushed as it goes."""
+    """One JSON object a line (the README's schema), flushed as it goes when ``live`` (the sniffer);
+    an offline decode (``live=False``) leaves buffering to the stream and flushes after the summary."""
 
-    def __init__(self, stream: IO[str]) -> None:
+    def __init__(self, stream: IO[str], live: bool = True) -> None:
         self.stream = stream
+        self.live = live
 
     def write(self, record: Record) -> None:
         self.stream.write(record.to_json() + "\n")
-        self.stream.flush()
+        if self.live:
+            self.stream.flush()
 
     def summary(self, summary: dict[str, Any]) -> None:
         self.stream.write(summary_json(summary) + "\n")
@@ -64,13 +68,26 @@ class TextView:
     def __init__(self, stream: IO[str], color: bool | None = None) -> None:
         self.console = Console(file=stream, force_terminal=color, no_color=color is False,
                                highlight=False, soft_wrap=True)
+        self.stream = stream
+        # no colour system (a file, a pipe, --no-color): a line is its markup's plain text, which rich
+        # makes the same way without the console's per-print rendering
+        self._plain = self.console.color_system is None
+
+    def _print(self, markup: str) -> None:
+        """One line: what ``console.print(markup)`` prints."""
+        if self._plain:
+            plain = Text.from_markup(markup).plain
+            if "\t" not in plain:  # tabs the console expands: left to it
+                self.stream.write(plain + "\n")
+                return
+        self.console.print(markup)
 
     def write(self, record: Record) -> None:
-        self.console.print(self.line(record))
+        self._print(self.line(record))
         for line in violation_lines(record):
-            self.console.print(line)
+            self._print(line)
         for error in getattr(record, "line_errors", ()):
-            self.console.print(f"      [magenta]! line error: {escape(error)}[/]")
+            self._print(f"      [magenta]! line error: {escape(error)}[/]")
 
     def line(self, record: Record) -> str:
         when = show_time(record.t)
@@ -153,10 +170,10 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-def make_view(fmt: str, stream: IO[str], color: bool | None = None) -> View:
-    """The sink for ``--format``: ``text`` or ``jsonl``."""
+def make_view(fmt: str, stream: IO[str], color: bool | None = None, live: bool = True) -> View:
+    """The sink for ``--format``: ``text`` or ``jsonl`` (``live``: flush every record)."""
     if fmt == "jsonl":
-        return JsonlView(stream)
+        return JsonlView(stream, live)
     if fmt == "text":
         return TextView(stream, color)
     raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")

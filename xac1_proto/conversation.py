@@ -180,6 +180,17 @@ class Verdict:
         return tuple(v for v in self.violations if v.code not in spec.NOTICES)
 
 
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> field names in wire order
+
+
+def _fields(frame: Frame) -> dict[str, object]:
+    """``frame.fields()``, the class's field names looked up once (the hot path of every answer)."""
+    names = _FIELD_NAMES.get(type(frame))
+    if names is None:
+        names = _FIELD_NAMES[type(frame)] = tuple(frame.fields())
+    return {name: getattr(frame, name) for name in names}
+
+
 def side_of(code: spec.ViolationCode, sender: spec.Side) -> spec.Side:
     """Whose fault ``code`` is when found in bytes that ``sender`` sent."""
     return spec.VIOLATION_TABLE[code].side(sender)
@@ -662,7 +673,7 @@ class Conversation:
         if header != line.header:
             found.append(_v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
             return False
-        mine, theirs = frame.fields(), cmd.fields()
+        mine, theirs = _fields(frame), _fields(cmd)
         if frame.frame_spec().echo:
             if mine != theirs:
                 diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"

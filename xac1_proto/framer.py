@@ -33,6 +33,10 @@ _O: Final = spec.LETTER_O[0]
 _LF: Final = spec.LF
 _UNDECIDED: Final = -2
 _START_BYTE: Final = re.compile(b"[" + re.escape(spec.LEAD + spec.LETTER_O) + b"]")
+assert all(len(t) == 2 for t in _TAILS), "a full header is a start byte and a two-byte tail"
+# a full header (what ``_strong_start`` calls 1), as one pattern: one C-level search per frame
+_STRONG: Final = re.compile(_START_BYTE.pattern + b"(?:" + b"|".join(re.escape(t) for t in sorted(_TAILS))
+                            + b")")
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,7 +64,7 @@ class Junk:
 Event = FrameBytes | Junk
 
 
-def _strong_start(buf: bytearray, p: int) -> int:
+def _strong_start(buf: bytes | bytearray, p: int) -> int:
     """1 if a full header (``0``/``O`` + known tail) starts at p, 0 if not, _UNDECIDED if the
     buffer ends before that is known."""
     if buf[p] not in (_ZERO, _O):
@@ -73,7 +77,7 @@ def _strong_start(buf: bytearray, p: int) -> int:
     return 0
 
 
-def _weak_start(buf: bytearray, p: int) -> int:
+def _weak_start(buf: bytes | bytearray, p: int) -> int:
     """1 if a frame may start at p (``0`` + a letter or ``%``, or ``O`` + a known tail)."""
     b = buf[p]
     if b == _ZERO:
@@ -109,11 +113,23 @@ class Framer:
 
     def feed(self, data: bytes, t: float | None = None) -> list[Event]:
         """Take the next bytes of the stream (all received at time ``t``); the events they complete."""
+        if not self._buf and data and self._whole_line(data):  # the common chunk: one frame, nothing held
+            offset = self._base
+            self._base += len(data)
+            return [FrameBytes(bytes(data), offset, t, t)]
         if data:
             self._buf += data
             self._ends.append(self.bytes_in)
             self._times.append(t)
         return self._drain(final=False)
+
+    def _whole_line(self, data: bytes) -> bool:
+        """Is ``data`` exactly one frame candidate the general path would emit whole: a frame start,
+        its only LF last, within ``max_frame``, no full header after its first byte? (With the LF last,
+        no start byte is left undecided.)"""
+        n = len(data)
+        return (n <= self.max_frame and data[-1] == _LF and data.find(_LF) == n - 1
+                and _weak_start(data, 0) == 1 and _STRONG.search(data, 1) is None)
 
     def flush(self) -> list[Event]:
         """End of data (or an idle line): what is pending comes out, a partial frame as junk."""
@@ -141,13 +157,17 @@ class Framer:
         buf = self._buf
         lf = buf.find(_LF, 0, self.max_frame)
         limit = lf if lf >= 0 else min(len(buf), self.max_frame)
-        # only a 0 or an O can start a header (the list releases the buffer before buf is resized)
-        for p in [m.start() for m in _START_BYTE.finditer(buf, 1, limit)]:
-            found = _strong_start(buf, p)
-            if found == 1:
-                return self._emit(p, "truncated")
-            if found == _UNDECIDED and not final:
-                return None
+        # the first full header after the start byte and before ``limit`` cuts this frame short; a
+        # start byte in the last two bytes of the buffer cannot be decided yet (its tail is not in).
+        # Every decidable start comes before every undecided one, so searching the decidable ones
+        # first keeps the byte-by-byte order of the rule.
+        strong = _STRONG.search(buf, 1, limit + 2)
+        if strong is not None:
+            return self._emit(strong.start(), "truncated")
+        if not final:
+            for p in range(max(1, len(buf) - 2), limit):
+                if _strong_start(buf, p) == _UNDECIDED:
+                    return None
         if lf >= 0:
             return self._emit(lf + 1, None)
         if len(buf) >= self.max_frame:

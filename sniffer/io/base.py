@@ -15,6 +15,7 @@ alias...) to ``host``/``device``, honouring ``--host-is``.
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import math
 import os
 import shutil
@@ -345,10 +346,16 @@ def wallclock(date: str, clock: str) -> float:
     read as local time (the zone the tool printed in is not recorded; local time keeps the clock
     the log shows). An impossible date or time (hour 27, day 32) is a ``ValueError`` saying so."""
     try:
-        y, m, d = (int(x) for x in date.replace("/", "-").split("-"))
         hms, _, frac = clock.partition(".")
-        hh, mm, ss = (int(x) for x in hms.split(":"))
-        base = _dt.datetime(y, m, d, hh, mm, ss).timestamp()
+        base = _local_seconds(date, hms)
         return base + (int(frac[:12]) / 10 ** len(frac[:12]) if frac else 0.0)
     except (ValueError, OverflowError, OSError) as exc:
         raise ValueError(f"impossible date or time {shown(date, 12)} {shown(clock, 24)} ({exc})") from None
+
+
+@functools.lru_cache(maxsize=256)
+def _local_seconds(date: str, hms: str) -> float:
+    """Unix seconds of a whole local second (cached: consecutive log lines share their second)."""
+    y, m, d = (int(x) for x in date.replace("/", "-").split("-"))
+    hh, mm, ss = (int(x) for x in hms.split(":"))
+    return _dt.datetime(y, m, d, hh, mm, ss).timestamp()

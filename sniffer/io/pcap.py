@@ -98,25 +98,40 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
 
 class _Buffer:
     """A look-ahead window over the file: ``peek`` without consuming, ``skip`` to consume; ``offset`` is
-    the file offset of the window's first byte. Memory: the largest peek (about one record)."""
+    the file offset of the window's first byte. The window is one immutable block read in large pieces
+    and a position in it: a peek is one slice, a skip moves the position (no per-record copy of the
+    rest). Memory: a read block plus the largest peek (about one record)."""
 
     def __init__(self, src: Source) -> None:
         self.src = src
-        self.data = bytearray()
+        self._block = b""
+        self._pos = 0
         self.offset = 0
 
     def peek(self, n: int) -> bytes:
-        while len(self.data) < n:
-            more = self.src.read(max(n - len(self.data), _READ))
+        end = self._pos + n
+        if end > len(self._block):
+            self._fill(n)
+            end = n
+        return self._block[self._pos:end]
+
+    def _fill(self, n: int) -> None:
+        """Read until ``n`` bytes from the position are in (or the file ends); the position becomes 0."""
+        parts = [self._block[self._pos:]]
+        have = len(parts[0])
+        while have < n:
+            more = self.src.read(max(n - have, _READ))
             if not more:
                 break
-            self.data += more
-        return bytes(self.data[:n])
+            parts.append(more)
+            have += len(more)
+        self._block = b"".join(parts)
+        self._pos = 0
 
     def skip(self, n: int) -> None:
         self.peek(n)
-        n = min(n, len(self.data))
-        del self.data[:n]
+        n = min(n, len(self._block) - self._pos)
+        self._pos += n
         self.offset += n
 
 

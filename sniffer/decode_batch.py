@@ -1,0 +1,131 @@
+"""``xac1 decode --batch DIR|GLOB... [--jobs N]``: an archive of captures, one conversation per file.
+
+How this works: each argument is a directory (its files, not recursive, hidden ones left out), a file, or
+a glob pattern; the files are decoded each on its own (exactly ``xac1 decode FILE``: the same format
+detection, options and summary), one process per file, at most ``--jobs`` at a time (default: the cores
+this process may run on), so an archive goes about as many times faster as there are cores. Printed in
+the order given: one row per file and a total (``--format jsonl``: a ``{"type":"file",...}`` line per file
+holding that file's summary record and exit status, then ``{"type":"total",...}``). Exit status: 2 when
+a file decoded nothing (missing, unknown format, no line data), else 1 when any file has violations or
+problems, else 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import glob
+import io
+import json
+import os
+import sys
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+_MESSAGES = "_stderr"  # a row's key for what decoding the file said on stderr (taken out before printing)
+_REFUSED = ("report", "annotate", "only_violations", "header")  # per-record options: not in a batch
+
+
+def default_jobs() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def expand(specs: list[str]) -> tuple[list[str], list[str]]:
+    """(the files, in the order given without repeats; the arguments that matched nothing)."""
+    files: dict[str, None] = {}
+    unmatched: list[str] = []
+    for spec in specs:
+        path = Path(spec)
+        if path.is_dir():
+            found = sorted(str(p) for p in path.iterdir() if p.is_file() and not p.name.startswith("."))
+        elif path.is_file():
+            found = [spec]
+        else:
+            found = sorted(p for p in glob.glob(spec) if Path(p).is_file())
+        if not found:
+            unmatched.append(spec)
+        files.update(dict.fromkeys(found))
+    return list(files), unmatched
+
+
+def decode_one(path: str, args: argparse.Namespace) -> dict[str, Any]:
+    """The row of one file: its summary record (as ``xac1 decode FILE --format jsonl`` ends) and exit."""
+    from .decode_cli import run
+
+    one = argparse.Namespace(**vars(args))
+    one.files, one.batch, one.format, one.color = [path], False, "summary", False
+    summaries: list[dict[str, Any]] = []
+    messages = io.StringIO()  # kept with the row: printed in file order, never interleaved
+    with contextlib.redirect_stderr(messages):
+        status = run(one, summaries)
+    row: dict[str, Any] = {"type": "file", "file": path, "exit": status}
+    if summaries:
+        row.update((k, v) for k, v in summaries[0].items() if k != "type")
+    row[_MESSAGES] = messages.getvalue()
+    return row
+
+
+def total(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The counts of every file added up (latencies are per file only)."""
+    out: dict[str, Any] = {"type": "total", "files": len(rows),
+                           "failed": sum(1 for r in rows if r["exit"] == 2)}
+    for key in ("frames", "bytes"):
+        out[key] = {side: sum(r.get(key, {}).get(side, 0) for r in rows) for side in ("host", "device")}
+    violations: Counter[str] = Counter()
+    for r in rows:
+        violations.update(r.get("violations", {}))
+    out["junk"] = sum(r.get("junk", 0) for r in rows)
+    out["violations"] = dict(violations)
+    out["problems"] = sum(r.get("problems", 0) for r in rows)
+    out["line_errors"] = sum(r.get("line_errors", 0) for r in rows)
+    out["unanswered"] = sum(r.get("unanswered", 0) for r in rows)
+    return out
+
+
+def _row_text(name: str, fmt: str, r: dict[str, Any], exit_text: str) -> str:
+    frames, violations = r.get("frames", {}), sum(r.get("violations", {}).values())
+    return (f"{name:<40} {fmt:<12} {frames.get('host', 0):>10} {frames.get('device', 0):>10} "
+            f"{r.get('junk', 0):>7} {violations:>10} {r.get('problems', 0):>8} {exit_text:>4}")
+
+
+def run(args: argparse.Namespace) -> int:
+    refused = [f"--{name.replace('_', '-')}" for name in _REFUSED if getattr(args, name, None)]
+    if refused:
+        print(f"xac1 decode: --batch prints one summary row per file; {', '.join(refused)} "
+              f"work on one capture only", file=sys.stderr)
+        return 2
+    jobs = args.jobs or default_jobs()
+    files, unmatched = expand(args.files)
+    for spec in unmatched:
+        print(f"xac1 decode: {spec}: no file matches (a directory, a file or a glob pattern)",
+              file=sys.stderr)
+    if not files:
+        return 2
+    if jobs == 1 or len(files) == 1:
+        rows = [decode_one(f, args) for f in files]
+    else:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(files))) as pool:
+            rows = list(pool.map(decode_one, files, [args] * len(files)))
+    for row in rows:
+        sys.stderr.write(row.pop(_MESSAGES))
+    all_rows = rows + [total(rows)]
+    if args.format == "jsonl":
+        for row in all_rows:
+            print(json.dumps(row, separators=(",", ":")))
+    else:
+        print(f"{'file':<40} {'format':<12} {'host':>10} {'device':>10} {'junk':>7} {'violations':>10} "
+              f"{'problems':>8} {'exit':>4}")
+        for r in rows:
+            print(_row_text(r["file"], r.get("format", "-"), r, str(r["exit"])))
+        t = all_rows[-1]
+        print(_row_text(f"total ({t['files']} files, {t['failed']} failed)", "", t, ""))
+    sys.stdout.flush()
+    if unmatched or any(r["exit"] == 2 for r in rows):
+        return 2
+    return 1 if any(r["exit"] for r in rows) else 0
