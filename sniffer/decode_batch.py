@@ -20,6 +20,7 @@ import json
 import os
 import sys
 from collections import Counter
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -54,16 +55,18 @@ def expand(specs: list[str]) -> tuple[list[str], list[str]]:
     return list(files), unmatched
 
 
-def decode_one(path: str, args: argparse.Namespace) -> dict[str, Any]:
-    """The row of one file: its summary record (as ``xac1 decode FILE --format jsonl`` ends) and exit."""
-    from .decode_cli import run
+Decode = Callable[[argparse.Namespace, list[dict[str, Any]]], int]
 
+
+def decode_one(path: str, args: argparse.Namespace, decode: Decode) -> dict[str, Any]:
+    """The row of one file: its summary record (as ``xac1 decode FILE --format jsonl`` ends) and exit.
+    ``decode``: one file's decode (``decode_cli.run``, handed in: this module sits below the CLI)."""
     one = argparse.Namespace(**vars(args))
     one.files, one.batch, one.format, one.color = [path], False, "summary", False
     summaries: list[dict[str, Any]] = []
     messages = io.StringIO()  # kept with the row: printed in file order, never interleaved
     with contextlib.redirect_stderr(messages):
-        status = run(one, summaries)
+        status = decode(one, summaries)
     row: dict[str, Any] = {"type": "file", "file": path, "exit": status}
     if summaries:
         row.update((k, v) for k, v in summaries[0].items() if k != "type")
@@ -94,7 +97,8 @@ def _row_text(name: str, fmt: str, r: dict[str, Any], exit_text: str) -> str:
             f"{r.get('junk', 0):>7} {violations:>10} {r.get('problems', 0):>8} {exit_text:>4}")
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace, decode: Decode) -> int:
+    """``xac1 decode --batch``: every file decoded by ``decode``, a process each up to ``--jobs``."""
     refused = [f"--{name.replace('_', '-')}" for name in _REFUSED if getattr(args, name, None)]
     if refused:
         print(f"xac1 decode: --batch prints one summary row per file; {', '.join(refused)} "
@@ -108,10 +112,10 @@ def run(args: argparse.Namespace) -> int:
     if not files:
         return 2
     if jobs == 1 or len(files) == 1:
-        rows = [decode_one(f, args) for f in files]
+        rows = [decode_one(f, args, decode) for f in files]
     else:
         with ProcessPoolExecutor(max_workers=min(jobs, len(files))) as pool:
-            rows = list(pool.map(decode_one, files, [args] * len(files)))
+            rows = list(pool.map(decode_one, files, [args] * len(files), [decode] * len(files)))
     for row in rows:
         sys.stderr.write(row.pop(_MESSAGES))
     all_rows = rows + [total(rows)]

@@ -136,7 +136,7 @@ def run(args: argparse.Namespace, summaries: list[dict[str, Any]] | None = None)
 
     if getattr(args, "batch", False):
         from .decode_batch import run as run_batch
-        return run_batch(args)
+        return run_batch(args, run)
 
     report = Report()
     sources: list[Source] = []

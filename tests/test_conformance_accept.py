@@ -19,6 +19,8 @@ import pytest
 
 from xac1_proto.sim import SimConfig, serve_tcp
 
+pytestmark = pytest.mark.slow  # whole conformance runs as processes
+
 RUN_TIMEOUT = 120
 MOTION = ["--allow-motion", "--safe-range", "0:0x1000"]
 NOISE = ("Traceback", "KeyboardInterrupt", "site-packages", "! Interrupted", "b'", "error in ")

@@ -24,6 +24,8 @@ import pytest
 
 from xac1_proto.client import Client
 
+pytestmark = pytest.mark.slow  # conformance runs interrupted by signals
+
 HELD = {3: (5, 2, 1, 0x400), 7: (9, 3, 0, 0x800)}
 RUN = ["--allow-motion", "--safe-range", "0:0x1000", "--examples", "3",
        "-k", "read_back or outputs or echo or alarm"]

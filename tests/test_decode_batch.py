@@ -14,6 +14,8 @@ from xac1_proto import frames as fr
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.cli import main
 
+pytestmark = pytest.mark.slow  # xac1 decode processes
+
 T0 = 1_790_000_000.0
 
 

@@ -40,6 +40,8 @@ from conformance.fleet import (
 from xac1_proto.client import Client
 from xac1_proto.recording import read_recording
 
+pytestmark = pytest.mark.slow  # several simulators and conformance processes
+
 # Five points hold data: enough for every check to run on a real device without --scratch-points,
 # and every one of them must be back as it was after the run.
 HELD = {n: (n % 60 + 1, n % 3 + 1, n % 4, 0x100 * n) for n in range(1, 6)}

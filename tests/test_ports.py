@@ -20,6 +20,8 @@ from serial.tools import list_ports, list_ports_common
 
 from xac1_proto.cli import main, ports_cmd
 
+pytestmark = pytest.mark.slow  # simulator processes
+
 
 def xac1(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "xac1_proto", *args], capture_output=True, text=True,

@@ -15,6 +15,8 @@ from pathlib import Path
 import pytest
 from session_report_browser import CHROMIUM, Browser, Page, png_pixels
 
+pytestmark = pytest.mark.slow  # headless chromium per page
+
 ROOT = Path(__file__).resolve().parent.parent
 CAPTURES = ROOT / "captures"
 XAC1 = [sys.executable, "-m", "xac1_proto"]

@@ -21,6 +21,8 @@ import serial
 from xac1_proto.sim.model import PointData
 from xac1_proto.sim.state import load_state, save_state
 
+pytestmark = pytest.mark.slow  # simulator processes and signals
+
 TIMEOUT = 5.0
 ANSWER_0RV = b"0RV100\r\n"
 

@@ -36,6 +36,8 @@ from sniffer.wireshark.luagen import generate, shipped_path
 from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 
+pytestmark = pytest.mark.slow  # tshark processes
+
 GALLERY = Path(__file__).resolve().parent.parent / "captures"
 CAPTURES = sorted(p for p in GALLERY.iterdir()
                   if p.is_file() and p.suffix not in (".md", ".py") and "device" not in p.name)

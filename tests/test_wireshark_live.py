@@ -20,6 +20,8 @@ from wireshark_tshark import PLUGIN, assert_frames_match, dissect, dissected_ver
 
 from xac1_proto.sim import SimConfig, serve_pty, serve_tcp
 
+pytestmark = pytest.mark.slow  # proxy, simulator and tshark processes
+
 WAIT_S = 20.0
 
 # The host's side of the session: a letter O, a command after the alarm answer without a reset (the
