@@ -320,6 +320,10 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         progress.check(Path(str(item.path)).stem.removeprefix("test_"), item.name.removeprefix("test_"))
     try:
         return (yield)
+    except KeyboardInterrupt:  # a signal (stopping.Interrupted) cut this check short: no verdict on it
+        if run is not None and is_check(item) and item.nodeid not in run.interrupted:
+            run.interrupted.append(item.nodeid)
+        raise
     finally:
         if progress is not None:
             progress.finished_one()

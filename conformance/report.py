@@ -400,6 +400,7 @@ def pictures(rep: Report) -> dict[str, Any] | None:
     something (``timing_meaningful``), its histogram per command with the answer deadline, drawn by the
     session report's plotly helpers (``sniffer.report.plots``), with plotly.js to inline once. None when
     plotly (the ``report`` extra) is not installed: the page is then the same without the pictures."""
+    import html
     import importlib
 
     from markupsafe import Markup
@@ -408,14 +409,16 @@ def pictures(rep: Report) -> dict[str, Any] | None:
         plots = importlib.import_module("sniffer.report.plots")
     except ImportError:
         return None
-    outcomes = {g.title: {"passed": g.passed, "failed": g.failed, "skipped": g.skipped + g.not_run,
-                          "manual": g.manual} for g in rep.groups}
+    # Names reach plotly's labels, which read HTML: escaped, as the page's own text is.
+    outcomes = {html.escape(g.title): {"passed": g.passed, "failed": g.failed,
+                                       "skipped": g.skipped + g.not_run, "manual": g.manual}
+                for g in rep.groups}
     groups = {title: {k: n for k, n in counts.items() if n} for title, counts in outcomes.items()}
     turnaround = None
     if rep.latencies and rep.timing_meaningful:
         deadline = rep.timeout * 1000.0 if rep.timeout is not None else None
         turnaround = Markup(plots.turnaround_histogram(
-            {h: [t * 1000.0 for t in v] for h, v in rep.latencies.items()},
+            {html.escape(h): [t * 1000.0 for t in v] for h, v in rep.latencies.items()},
             title="Answer turnaround per command", deadline_ms=deadline))
     return {"groups": Markup(plots.group_summary(groups, title="Checks per rule group")) if groups else None,
             "turnaround": turnaround,

@@ -1,10 +1,16 @@
-"""The restore after an interruption resets a latched alarm even when the interrupt landed between a
-malformed command and the bookkeeping of its answer (the suite still believes nothing is latched): the
-restore treats the alarm state as unknown and sends 0%C first. A real ``xac1 sim`` over TCP, the real
-client; the interrupt is raised where a signal would land (after the answer came, before it is filed)."""
+"""Interrupted runs. Ctrl-C during the random command sequences (hypothesis) is an interrupted run
+(INCOMPLETE, exit 2, the device restored), never a failure. The restore after an interruption resets a
+latched alarm even when the interrupt landed between a malformed command and the bookkeeping of its
+answer (the suite still believes nothing is latched): the restore treats the alarm state as unknown and
+sends 0%C first. A real ``xac1 sim`` over TCP, the real client; the interrupt is raised where a signal
+would land (after the answer came, before it is filed)."""
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -79,3 +85,34 @@ def test_restore_resets_an_alarm_latched_unbeknown(sim, monkeypatch, route):
     with Client(sim.url, timeout=1) as c:
         assert _alarm_latched(c) is False
     assert sim.points() == HELD and sim.outputs() == OUT_BEFORE
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("wait_for", [b"0WP", b"0MP"])
+def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for):
+    """SIGINT once the random sequences have written a point (or moved): exit 2, the verdict says
+    INCOMPLETE and interrupted, no check FAILs or ERRORs, the device's points and OUT ports are back."""
+    slow = Sim(tmp_path, "seq", "--time-scale", "0.05", "--turnaround", "200")  # 10 ms an answer
+    try:
+        before = len(slow.host_bytes())
+        proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "conformance", "--port", slow.url,
+                                 "--allow-motion", "--safe-range", "0:0x1000", "-k", "random_sequences",
+                                 "--examples", "500", "--report", str(tmp_path / "r.md")], cwd=tmp_path,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        deadline = time.monotonic() + 60
+        while wait_for not in slow.host_bytes()[before:]:
+            assert time.monotonic() < deadline and proc.poll() is None, "the sequences never began"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=90)
+        assert proc.returncode == 2, out[-3000:]
+        last = out.splitlines()[-1]
+        assert last.startswith("xac1 conformance: INCOMPLETE") and "interrupted by SIGINT" in last, last
+        assert not [line for line in out.splitlines() if line.startswith(("FAIL", "ERROR", "safety PROBLEM",
+                                                                          "safety NOT RESTORED"))], out
+        assert "xac1: restoring the device's points" in out
+        report = (tmp_path / "r.md").read_text()
+        assert "random_sequences | interrupted" in report and "FAIL" not in report.split("## Safety")[0]
+        assert slow.points() == HELD and slow.outputs() == OUT_BEFORE
+    finally:
+        slow.close()
