@@ -178,9 +178,15 @@ def plugin_flags(text: str) -> str:
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_cmdline_main(config: pytest.Config) -> int | None:
-    """Several devices: hand the run over to the fleet (``conformance/fleet.py``) before pytest collects
-    or sends anything; one ``xac1 conformance --port X`` process per device, exactly as the CLI route."""
+    """Before pytest configures or collects anything: bad options end the run (exit 2); several devices
+    hand the run over to the fleet (``conformance/fleet.py``), one ``xac1 conformance --port X`` process
+    per device, exactly as the CLI route."""
     if not fleet_wanted(config):
+        # Bad options exit 2 as in ``xac1 conformance`` (pytest's own usage error, 4, is our INCOMPLETE).
+        problem = bad_options(config) if _options_used(config) else None
+        if problem:
+            print(f"ERROR: {problem}; nothing was sent", file=sys.stderr, flush=True)
+            return 2
         return None
     from . import fleet
 
@@ -213,17 +219,11 @@ def pytest_configure(config: pytest.Config) -> None:
 def _activate(run: Xac1Run) -> None:
     if run.active:
         return
-    from .settings import Settings, SettingsError
+    from .settings import SettingsError
 
     c = run.config
     try:
-        run.settings = Settings.make(_single_port(c), c.getoption("xac1_allow_motion"),
-                                     c.getoption("xac1_fresh"), c.getoption("xac1_safe_range"),
-                                     seed=c.getoption("xac1_seed"), examples=c.getoption("xac1_examples"),
-                                     timeout=c.getoption("xac1_timeout"),
-                                     scratch_points=c.getoption("xac1_scratch_points"),
-                                     restore_mode0=c.getoption("xac1_restore_mode0"),
-                                     cli=c.getoption("xac1_cli"))
+        run.settings = _settings(c)
     except SettingsError as exc:
         raise pytest.UsageError(str(exc)) from None
     problem = check_outputs(c.getoption("xac1_report"), c.getoption("xac1_junit"), run.settings.flag)
@@ -239,6 +239,27 @@ def _activate(run: Xac1Run) -> None:
 
         run.progress = Progress()
     run.active = True
+
+
+def _settings(c: pytest.Config) -> Any:
+    from .settings import Settings
+
+    return Settings.make(_single_port(c), c.getoption("xac1_allow_motion"), c.getoption("xac1_fresh"),
+                         c.getoption("xac1_safe_range"), seed=c.getoption("xac1_seed"),
+                         examples=c.getoption("xac1_examples"), timeout=c.getoption("xac1_timeout"),
+                         scratch_points=c.getoption("xac1_scratch_points"),
+                         restore_mode0=c.getoption("xac1_restore_mode0"), cli=c.getoption("xac1_cli"))
+
+
+def bad_options(c: pytest.Config) -> str | None:
+    """What is wrong with the run's options (before anything is sent), else None."""
+    from .settings import SettingsError
+
+    try:
+        settings = _settings(c)
+    except SettingsError as exc:
+        return str(exc)
+    return check_outputs(c.getoption("xac1_report"), c.getoption("xac1_junit"), settings.flag)
 
 
 def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | None:

@@ -79,3 +79,16 @@ def test_plugin_fleet_bad_input_names_the_plugin_options(sims, tmp_path, extra, 
 def test_plugin_flags_translates_only_known_options():
     assert plugin_flags("--report-dir DIR and --ports FILE, not --xac1-seed or --bogus") == (
         "--xac1-report-dir DIR and --xac1-ports FILE, not --xac1-seed or --bogus")
+
+
+def test_plugin_bad_options_exit_2_before_anything_is_sent(sims, tmp_path):
+    """One device, bad options: exit 2 as ``xac1 conformance`` gives (pytest's usage error would be 4,
+    which is our INCOMPLETE), the message naming the option, nothing sent."""
+    a = sims("a")
+    before = a.host_bytes()
+    for bad, expected in ((["--xac1-safe-range", "5:1"], "--xac1-safe-range: LO 0x000005 is above HI"),
+                          (["--xac1-report", str(tmp_path / "no" / "r.html")], "does not exist")):
+        r = plugin(["--xac1-port", a.url, *bad], tmp_path, timeout=60)
+        assert r.returncode == 2, r.stdout + r.stderr
+        assert expected in r.stderr and "nothing was sent" in r.stderr, r.stderr
+    assert a.host_bytes() == before
