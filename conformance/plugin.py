@@ -16,7 +16,9 @@ whatever stopped the run; a restore the device did not answer is reported as not
 SIGTERM and SIGHUP end the run as Ctrl-C does (``stopping.StopPolicy``); a second signal is ignored and
 said so. The verdict and exit status come from ``report.Report``: 0 conforms, 1 a check failed, 2
 interrupted, 3 could not go on, 4 incomplete (checks of stated rules not run; 0 with
-``--xac1-allow-incomplete``).
+``--xac1-allow-incomplete``). Several devices (``--xac1-port`` repeated, ``--xac1-ports FILE`` or
+``--xac1-report-dir``): ``pytest_cmdline_main`` hands the run over to ``conformance.fleet`` before
+pytest configures or collects anything, one ``xac1 conformance --port X`` process per device.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import argparse
 import contextlib
 import datetime as _dt
 import os
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -76,8 +79,16 @@ EXIT_INCOMPLETE = 3  # the run could not go on: no port, no answer, emergency st
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     g = parser.getgroup("xac1", "XA-C1 conformance suite")
-    g.addoption("--xac1-port", metavar="URL", default=None,
-                help="device under test: a pyserial URL or device path (default: the built-in simulator)")
+    g.addoption("--xac1-port", metavar="URL", action="append", default=None,
+                help="device under test: a pyserial URL or device path (default: the built-in simulator). "
+                     "Repeat it to test several devices at once, one process each, as `xac1 conformance "
+                     "--port A --port B` does (see --xac1-report-dir)")
+    g.addoption("--xac1-ports", metavar="FILE", default=None,
+                help="test every port listed in FILE at once (one URL a line, optionally followed by the "
+                     "unit's id; # comments), each in its own process")
+    g.addoption("--xac1-report-dir", metavar="DIR", default=None,
+                help="with several ports: write DIR/<port>.html, DIR/<port>.xml (JUnit), DIR/<port>.log and "
+                     "DIR/fleet.html, DIR/fleet.md")
     g.addoption("--xac1-allow-motion", action="store_true", default=False,
                 help="allow moving the actuator (implied for the simulator); needs --xac1-safe-range")
     g.addoption("--xac1-fresh", action="store_true", default=False,
@@ -112,10 +123,80 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def _options_used(config: pytest.Config) -> bool:
-    names = ("xac1_port", "xac1_allow_motion", "xac1_fresh", "xac1_safe_range", "xac1_seed",
-             "xac1_examples", "xac1_timeout", "xac1_report", "xac1_scratch_points", "xac1_restore_mode0",
-             "xac1_junit", "xac1_unit_id", "xac1_allow_incomplete")
+    names = tuple(CLI_OPTION)  # any xac1 option the operator gives activates the plugin
     return any(config.getoption(n) not in (None, False) for n in names)
+
+
+def _single_port(config: pytest.Config) -> str | None:
+    ports = config.getoption("xac1_port") or []
+    return ports[0] if ports else None
+
+
+# Plugin option (dest) -> the ``xac1 conformance`` option it is, for the fleet hand-over.
+CLI_OPTION: dict[str, str] = {
+    "xac1_port": "--port", "xac1_ports": "--ports", "xac1_report_dir": "--report-dir",
+    "xac1_allow_motion": "--allow-motion", "xac1_fresh": "--fresh", "xac1_safe_range": "--safe-range",
+    "xac1_seed": "--seed", "xac1_examples": "--examples", "xac1_timeout": "--timeout",
+    "xac1_report": "--report", "xac1_scratch_points": "--scratch-points",
+    "xac1_restore_mode0": "--restore-mode0", "xac1_allow_incomplete": "--allow-incomplete",
+    "xac1_unit_id": "--unit-id", "xac1_operator": "--operator", "xac1_station": "--station",
+    "xac1_note": "--note", "xac1_junit": "--junit",
+}
+
+
+def fleet_wanted(config: pytest.Config) -> bool:
+    """Several ``--xac1-port``, a ``--xac1-ports`` file or a ``--xac1-report-dir``: the fleet's job."""
+    return (len(config.getoption("xac1_port") or []) > 1 or bool(config.getoption("xac1_ports"))
+            or bool(config.getoption("xac1_report_dir")))
+
+
+def fleet_arguments(config: pytest.Config) -> argparse.Namespace:
+    """The plugin's options as ``xac1 conformance``'s parsed arguments (what ``fleet.run`` takes)."""
+    from .cli import add_arguments
+
+    parser = argparse.ArgumentParser(prog="xac1 conformance")
+    add_arguments(parser)
+    argv: list[str] = []
+    for dest, flag in CLI_OPTION.items():
+        value = config.getoption(dest)
+        if value is None or value is False:
+            continue
+        for v in value if isinstance(value, list) else [value]:
+            argv += [flag] if v is True else [flag, str(v)]
+    if config.getoption("keyword"):
+        argv += ["-k", config.getoption("keyword")]
+    return parser.parse_args(argv)
+
+
+def plugin_flags(text: str) -> str:
+    """A fleet message with the plugin's option names (``--report-dir`` -> ``--xac1-report-dir``)."""
+    import re
+
+    names = {flag: "--xac1-" + flag[2:] for flag in CLI_OPTION.values()}
+    return re.sub(r"(?<![\w-])--[a-z][a-z0-9-]*", lambda m: names.get(m.group(0), m.group(0)), text)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config: pytest.Config) -> int | None:
+    """Before pytest configures or collects anything: bad options end the run (exit 2); several devices
+    hand the run over to the fleet (``conformance/fleet.py``), one ``xac1 conformance --port X`` process
+    per device, exactly as the CLI route."""
+    if not fleet_wanted(config):
+        # Bad options exit 2 as in ``xac1 conformance`` (pytest's own usage error, 4, is our INCOMPLETE).
+        problem = bad_options(config) if _options_used(config) else None
+        if problem:
+            print(f"ERROR: {problem}; nothing was sent", file=sys.stderr, flush=True)
+            return 2
+        return None
+    from . import fleet
+
+    args = fleet_arguments(config)
+    try:
+        fleet._check_options(args, fleet.targets(args))
+    except fleet.FleetError as exc:
+        print(f"xac1 plugin: {plugin_flags(str(exc))}; nothing was sent", file=sys.stderr, flush=True)
+        return 2
+    return fleet.run(args)
 
 
 def _run(config: pytest.Config) -> Xac1Run | None:
@@ -138,17 +219,11 @@ def pytest_configure(config: pytest.Config) -> None:
 def _activate(run: Xac1Run) -> None:
     if run.active:
         return
-    from .settings import Settings, SettingsError
+    from .settings import SettingsError
 
     c = run.config
     try:
-        run.settings = Settings.make(c.getoption("xac1_port"), c.getoption("xac1_allow_motion"),
-                                     c.getoption("xac1_fresh"), c.getoption("xac1_safe_range"),
-                                     seed=c.getoption("xac1_seed"), examples=c.getoption("xac1_examples"),
-                                     timeout=c.getoption("xac1_timeout"),
-                                     scratch_points=c.getoption("xac1_scratch_points"),
-                                     restore_mode0=c.getoption("xac1_restore_mode0"),
-                                     cli=c.getoption("xac1_cli"))
+        run.settings = _settings(c)
     except SettingsError as exc:
         raise pytest.UsageError(str(exc)) from None
     problem = check_outputs(c.getoption("xac1_report"), c.getoption("xac1_junit"), run.settings.flag)
@@ -164,6 +239,27 @@ def _activate(run: Xac1Run) -> None:
 
         run.progress = Progress()
     run.active = True
+
+
+def _settings(c: pytest.Config) -> Any:
+    from .settings import Settings
+
+    return Settings.make(_single_port(c), c.getoption("xac1_allow_motion"), c.getoption("xac1_fresh"),
+                         c.getoption("xac1_safe_range"), seed=c.getoption("xac1_seed"),
+                         examples=c.getoption("xac1_examples"), timeout=c.getoption("xac1_timeout"),
+                         scratch_points=c.getoption("xac1_scratch_points"),
+                         restore_mode0=c.getoption("xac1_restore_mode0"), cli=c.getoption("xac1_cli"))
+
+
+def bad_options(c: pytest.Config) -> str | None:
+    """What is wrong with the run's options (before anything is sent), else None."""
+    from .settings import SettingsError
+
+    try:
+        settings = _settings(c)
+    except SettingsError as exc:
+        return str(exc)
+    return check_outputs(c.getoption("xac1_report"), c.getoption("xac1_junit"), settings.flag)
 
 
 def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | None:
@@ -245,6 +341,10 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
         progress.check(Path(str(item.path)).stem.removeprefix("test_"), item.name.removeprefix("test_"))
     try:
         return (yield)
+    except KeyboardInterrupt:  # a signal (stopping.Interrupted) cut this check short: no verdict on it
+        if run is not None and is_check(item) and item.nodeid not in run.interrupted:
+            run.interrupted.append(item.nodeid)
+        raise
     finally:
         if progress is not None:
             progress.finished_one()

@@ -83,6 +83,8 @@ class Report:
     kit_version: str = ""
     junit: list[Result] = field(default_factory=list)  # every result, information included
     not_run_topics: list[str] = field(default_factory=list)  # the group of each stated-rule check not run
+    latencies: dict[str, list[float]] = field(default_factory=dict)  # command header -> turnarounds (s)
+    timeout: float | None = None  # the run's answer timeout (s): the deadline drawn on the histogram
 
     # ---- what the checks say ----
 
@@ -273,7 +275,9 @@ def build(run: Any) -> Report:
         command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seed=s.seed, kit_version=__version__, junit=list(run.results),
         not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected
-                        if nodeid not in judged and not info])
+                        if nodeid not in judged and not info],
+        latencies={h: list(v) for h, v in dut.latencies.items() if v} if dut is not None else {},
+        timeout=s.timeout)
 
 
 def _topic(nodeid: str) -> str:
@@ -388,6 +392,39 @@ def _md_code(text: str) -> str:
     return f"`` {text} ``" if "`" in text else f"`{text}`"
 
 
+PICTURES_HINT = "pip install 'xac1-proto[report]'"  # the extra that draws the report's pictures
+
+
+def pictures(rep: Report) -> dict[str, Any] | None:
+    """The HTML report's figures (issue 17): the rule groups as stacked bars and, when turnaround means
+    something (``timing_meaningful``), its histogram per command with the answer deadline, drawn by the
+    session report's plotly helpers (``sniffer.report.plots``), with plotly.js to inline once. None when
+    plotly (the ``report`` extra) is not installed: the page is then the same without the pictures."""
+    import html
+    import importlib
+
+    from markupsafe import Markup
+
+    try:
+        plots = importlib.import_module("sniffer.report.plots")
+    except ImportError:
+        return None
+    # Names reach plotly's labels, which read HTML: escaped, as the page's own text is.
+    outcomes = {html.escape(g.title): {"passed": g.passed, "failed": g.failed,
+                                       "skipped": g.skipped + g.not_run, "manual": g.manual}
+                for g in rep.groups}
+    groups = {title: {k: n for k, n in counts.items() if n} for title, counts in outcomes.items()}
+    turnaround = None
+    if rep.latencies and rep.timing_meaningful:
+        deadline = rep.timeout * 1000.0 if rep.timeout is not None else None
+        turnaround = Markup(plots.turnaround_histogram(
+            {html.escape(h): [t * 1000.0 for t in v] for h, v in rep.latencies.items()},
+            title="Answer turnaround per command", deadline_ms=deadline))
+    return {"groups": Markup(plots.group_summary(groups, title="Checks per rule group")) if groups else None,
+            "turnaround": turnaround,
+            "js": Markup(plots.plotly_js().replace("</script", "<\\/script"))}
+
+
 def render_page(rep: Report, kind: str) -> str:
     """The report as ``html`` or ``md`` text."""
     from xac1_proto.pages import environment, render
@@ -396,7 +433,8 @@ def render_page(rep: Report, kind: str) -> str:
     env.filters.setdefault("md", _md)
     env.filters.setdefault("mdcode", _md_code)
     return render(f"conformance.{kind}.j2", rep=rep, title="XA-C1 conformance report",
-                  limit=EVIDENCE_LIMIT, not_run_text=_not_run_count(rep))
+                  limit=EVIDENCE_LIMIT, not_run_text=_not_run_count(rep),
+                  pictures=pictures(rep) if kind == "html" else None, pictures_hint=PICTURES_HINT)
 
 
 def html_page(rep: Report) -> str:

@@ -157,6 +157,10 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
     out = RestoreReport()
     try:
         dut.drain(min(dut.settings.timeout, 0.3))  # an interrupted probe's answer may still be coming
+        # Whatever the bookkeeping says, the alarm state is unknown here: a signal may have landed between
+        # a malformed command and the bookkeeping of its answer (an alarm latched, recorded as none).
+        # settle() then sends 0%C first.
+        dut.latched = None
         dut.settle()
         changed = 0
         for n in POINTS:

@@ -139,3 +139,22 @@ def test_no_ports_says_how_to_add_one(monkeypatch, capsys):
     assert main(["ports"]) == 0
     assert "no serial ports found" in capsys.readouterr().out
     assert main(["ports", "--timeout", "0"]) == 2
+
+
+def test_probe_reports_a_port_a_client_holds_as_busy(sim_pty_and_tcp):
+    """A conformance run (or any ``Client``) on a device path holds it exclusively: ``--probe`` sends
+    nothing into that conversation and says the port is busy; once the client closes, it is probed."""
+    from xac1_proto.client import Client
+
+    pty, _ = sim_pty_and_tcp
+    with Client(pty, timeout=1) as held:
+        assert held.read_version().version == "123"
+        r = xac1("ports", "--probe", "--format", "jsonl", "--port", pty)
+        row = next(row for row in map(json.loads, r.stdout.splitlines()) if row["port"] == pty)
+        assert row["probe"]["result"] == "busy", row
+        with pytest.raises(serial.SerialException, match="exclusively lock"):
+            Client(pty, timeout=1)  # a second run on the same device is refused too
+        assert held.read_version().version == "123"  # the holder's conversation goes on undisturbed
+    r = xac1("ports", "--probe", "--format", "jsonl", "--port", pty)
+    row = next(row for row in map(json.loads, r.stdout.splitlines()) if row["port"] == pty)
+    assert row["probe"]["result"] == "xac1" and row["probe"]["firmware"] == "123", row

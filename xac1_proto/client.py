@@ -14,6 +14,7 @@ are drained until the line is quiet. Nothing is retried behind the caller's back
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -62,10 +63,17 @@ POLL_S = 0.02  # longest a single read blocks; a deadline is overshot by at most
 
 
 def open_port(port: str | serial.Serial) -> tuple[serial.Serial, bool]:
-    """The port at 9600 8N1 and whether we opened it (a URL or device path) or were handed it."""
+    """The port at 9600 8N1 and whether we opened it (a URL or device path) or were handed it.
+
+    A device path (or ``hwgrep://``, which names one) is opened exclusively where pyserial supports it
+    (POSIX: an advisory lock), so that another program that asks for the port the same way, such as
+    ``xac1 ports --probe`` or a second run, finds it busy instead of talking into our conversation."""
     settings = dict(baudrate=spec.BAUD, bytesize=serial.EIGHTBITS, parity=serial.PARITY_NONE,
                     stopbits=serial.STOPBITS_ONE, timeout=POLL_S)
     if isinstance(port, str):
+        device = "://" not in port or port.lower().startswith("hwgrep://")
+        if device and os.name == "posix":
+            return serial.serial_for_url(port, exclusive=True, **settings), True
         return serial.serial_for_url(port, **settings), True
     for name, value in settings.items():
         if getattr(port, name) != value:

@@ -1,0 +1,118 @@
+"""Interrupted runs. Ctrl-C during the random command sequences (hypothesis) is an interrupted run
+(INCOMPLETE, exit 2, the device restored), never a failure. The restore after an interruption resets a
+latched alarm even when the interrupt landed between a malformed command and the bookkeeping of its
+answer (the suite still believes nothing is latched): the restore treats the alarm state as unknown and
+sends 0%C first. A real ``xac1 sim`` over TCP, the real client; the interrupt is raised where a signal
+would land (after the answer came, before it is filed)."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from test_fleet import HELD, OUT_BEFORE, Sim
+
+from conformance import plugin
+from conformance.dut import DeviceUnderTest
+from conformance.safety import restore, take_snapshot
+from conformance.settings import Settings
+from conformance.stopping import Interrupted
+from xac1_proto.client import Client
+from xac1_proto.frames import AlarmAnswer, ReadVersion, WriteOutputs, WritePoint
+
+MALFORMED = b"0WPZ\r\n"  # a write-point command with a bad point number: answered with an alarm
+
+
+@pytest.fixture
+def sim(tmp_path: Path):
+    s = Sim(tmp_path, "latch")
+    yield s
+    s.close()
+
+
+def _interrupted_after_malformed(sim: Sim) -> DeviceUnderTest:
+    dut = DeviceUnderTest.open(Settings.make(sim.url, False, False, None, timeout=0.5))
+    dut.test = "t"
+    return dut
+
+
+def _interrupt_before_bookkeeping(dut: DeviceUnderTest, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Send MALFORMED; the answer (an alarm) arrives, then SIGINT lands before ``_learn`` files it."""
+
+    def interrupted(command, probe):  # noqa: ANN001 - the signal lands here
+        raise Interrupted(2)
+
+    monkeypatch.setattr(dut, "_learn", interrupted)
+    with pytest.raises(Interrupted):
+        dut.probe(MALFORMED)
+    monkeypatch.undo()
+
+
+def _alarm_latched(client: Client) -> bool:
+    """Whether the device answers 0RV with an alarm (sent on the raw client: the suite's bookkeeping
+    sees nothing of it)."""
+    return isinstance(client.transact(ReadVersion().to_bytes()).frame, AlarmAnswer)
+
+
+@pytest.mark.parametrize("route", ["restore", "plugin"])
+def test_restore_resets_an_alarm_latched_unbeknown(sim, monkeypatch, route):
+    dut = _interrupted_after_malformed(sim)
+    try:
+        snap = take_snapshot(dut)
+        dut.send(WritePoint(n=1, v=9, a=2, o=0, pos=0x123))  # the run changed things...
+        dut.send(WriteOutputs(o=1))
+        assert dut.latched is False
+        _interrupt_before_bookkeeping(dut, monkeypatch)
+        assert dut.latched is False  # the bookkeeping never saw the alarm
+        assert _alarm_latched(dut.client) is True  # but the device has it latched
+        if route == "restore":
+            report = restore(dut, snap)
+        else:  # the plugin's end of session, as after Ctrl-C
+            run = plugin.Xac1Run(None)  # type: ignore[arg-type]
+            run.dut, run.snapshot = dut, snap
+            plugin._finish(run)
+            report = run.restore_report
+    finally:
+        dut.close()
+    assert report.ok, (report.problems, report.unverified)
+    assert dut.log[-1].raw is not None
+    resets = [p for p in dut.log if p.raw and p.raw.startswith(b"0%C")]
+    assert resets, "no 0%C sent by the restore"
+    with Client(sim.url, timeout=1) as c:
+        assert _alarm_latched(c) is False
+    assert sim.points() == HELD and sim.outputs() == OUT_BEFORE
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("wait_for", [b"0WP", b"0MP"])
+def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for):
+    """SIGINT once the random sequences have written a point (or moved): exit 2, the verdict says
+    INCOMPLETE and interrupted, no check FAILs or ERRORs, the device's points and OUT ports are back."""
+    slow = Sim(tmp_path, "seq", "--time-scale", "0.05", "--turnaround", "200")  # 10 ms an answer
+    try:
+        before = len(slow.host_bytes())
+        proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "conformance", "--port", slow.url,
+                                 "--allow-motion", "--safe-range", "0:0x1000", "-k", "random_sequences",
+                                 "--examples", "500", "--report", str(tmp_path / "r.md")], cwd=tmp_path,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        deadline = time.monotonic() + 60
+        while wait_for not in slow.host_bytes()[before:]:
+            assert time.monotonic() < deadline and proc.poll() is None, "the sequences never began"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=90)
+        assert proc.returncode == 2, out[-3000:]
+        last = out.splitlines()[-1]
+        assert last.startswith("xac1 conformance: INCOMPLETE") and "interrupted by SIGINT" in last, last
+        assert not [line for line in out.splitlines() if line.startswith(("FAIL", "ERROR", "safety PROBLEM",
+                                                                          "safety NOT RESTORED"))], out
+        assert "xac1: restoring the device's points" in out
+        report = (tmp_path / "r.md").read_text()
+        assert "random_sequences | interrupted" in report and "FAIL" not in report.split("## Safety")[0]
+        assert slow.points() == HELD and slow.outputs() == OUT_BEFORE
+    finally:
+        slow.close()
