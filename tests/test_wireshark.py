@@ -444,9 +444,10 @@ def test_install_keeps_an_entry_of_the_user_for_rtac_serial(wsenv):
     assert (cfg / "decode_as_entries").read_text() == theirs
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
 def test_install_into_a_read_only_profile_dir(wsenv):
-    """A profile folder we cannot write: a clear message, nothing of the user's touched."""
+    """A profile folder we cannot write: a clear message, nothing of the user's touched. Root writes
+    into read-only folders, so where the tests run as root the folder is made immutable (chattr +i),
+    which root cannot write into either."""
     _read_only_case(wsenv)
 
 
@@ -477,11 +478,18 @@ def _read_only_case(wsenv: dict[str, str]) -> None:
     original = "decode_as_entry: udp.port,5000,(none),RTP\n"
     (cfg / "decode_as_entries").write_text(original)
     cfg.chmod(0o555)
+    immutable = os.geteuid() == 0
+    if immutable:
+        made = subprocess.run(["chattr", "+i", str(cfg)], capture_output=True, text=True)
+        assert made.returncode == 0, f"chattr +i (e2fsprogs) is needed when the tests run as root: {made}"
     try:
         done = xac1("wireshark", "install", env=wsenv)
         assert done.returncode == 1 and "cannot write in" in done.stderr and "Traceback" not in done.stderr
         assert (cfg / "decode_as_entries").read_text() == original
+        assert not (cfg / "plugins").exists()
     finally:
+        if immutable:
+            subprocess.run(["chattr", "-i", str(cfg)], check=True)
         cfg.chmod(0o755)
 
 
