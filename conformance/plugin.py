@@ -152,7 +152,7 @@ def fleet_wanted(config: pytest.Config) -> bool:
 
 def fleet_arguments(config: pytest.Config) -> argparse.Namespace:
     """The plugin's options as ``xac1 conformance``'s parsed arguments (what ``fleet.run`` takes)."""
-    from .cli import add_arguments
+    from .options import add_arguments
 
     parser = argparse.ArgumentParser(prog="xac1 conformance")
     add_arguments(parser)
