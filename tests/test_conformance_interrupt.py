@@ -24,6 +24,8 @@ from conformance.stopping import Interrupted
 from xac1_proto.client import Client
 from xac1_proto.frames import AlarmAnswer, ReadVersion, WriteOutputs, WritePoint
 
+pytestmark = pytest.mark.slow  # conformance runs interrupted
+
 MALFORMED = b"0WPZ\r\n"  # a write-point command with a bad point number: answered with an alarm
 
 

@@ -199,6 +199,7 @@ def test_nan_infinite_and_absurd_times_never_crash_a_view(tmp_path: Path, view: 
 
 # ---- pipes, FIFOs, standard input ----
 
+@pytest.mark.slow  # a decode process per way in
 @pytest.mark.parametrize("name", ["socat-xv.log", "session.pcapng", "sigrok-uart.txt", "recording.jsonl"])
 def test_pipe_fifo_and_dash_decode_a_valid_capture(tmp_path: Path, name: str) -> None:
     """The reader opened the file twice to sniff its format: a FIFO hung, ``cat f | xac1 decode
@@ -319,6 +320,7 @@ def _peak_rss_mib(args: list[str]) -> tuple[int, float]:
     return proc.returncode, peak_kib / 1024
 
 
+@pytest.mark.slow  # a 100 MB file
 @pytest.mark.parametrize("layout", ["socat", "jsonl"])
 def test_a_100_mb_line_without_a_newline_stays_under_64_mib(tmp_path: Path, layout: str) -> None:
     """A 100 MB line with no newline (a socat hex dump, a recording line) is read in bounded pieces."""

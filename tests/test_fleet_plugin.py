@@ -15,6 +15,8 @@ from test_fleet import MOTION, Sim, assert_restored, table_row
 from conformance.fleet import CONFORMS, slug
 from conformance.plugin import plugin_flags
 
+pytestmark = pytest.mark.slow  # simulators and conformance processes
+
 PLUGIN_MOTION = ["--xac1-" + a.removeprefix("--") if a.startswith("--") else a for a in MOTION]
 
 
