@@ -36,7 +36,7 @@ from sniffer.wireshark.luagen import generate, shipped_path
 from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 
-pytestmark = pytest.mark.slow  # tshark processes
+pytestmark = [pytest.mark.slow, pytest.mark.requires_tool("tshark")]  # tshark processes
 
 GALLERY = Path(__file__).resolve().parent.parent / "captures"
 CAPTURES = sorted(p for p in GALLERY.iterdir()

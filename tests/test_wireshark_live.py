@@ -20,7 +20,7 @@ from wireshark_tshark import PLUGIN, assert_frames_match, dissect, dissected_ver
 
 from xac1_proto.sim import SimConfig, serve_pty, serve_tcp
 
-pytestmark = pytest.mark.slow  # proxy, simulator and tshark processes
+pytestmark = [pytest.mark.slow, pytest.mark.requires_tool("tshark")]  # proxy, simulator, tshark
 
 WAIT_S = 20.0
 
