@@ -23,14 +23,16 @@ directory on ``sys.path`` (rootdir-relative "prepend" import mode, as for ``snif
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -176,6 +178,32 @@ def xac1(*args: str, cwd: str | os.PathLike[str] = ROOT, timeout: float = 60.0,
     is all it reads (then end of file: never the terminal pytest runs in)."""
     return subprocess.run([sys.executable, "-m", "xac1_proto", *args], cwd=cwd, input=stdin,
                           capture_output=True, text=True, timeout=timeout)
+
+
+@contextlib.contextmanager
+def xac1_sim(*args: str, preexec_fn: Callable[[], object] | None = None,
+             timeout: float = 5.0) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """Run ``xac1 sim ARGS``; yields the process and its first stdout line (where to connect). On the
+    way out: SIGTERM (the orderly end), then kill after ``timeout``."""
+    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "sim", *args], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=preexec_fn)
+    try:
+        assert proc.stdout is not None
+        first = proc.stdout.readline().strip()
+        assert first, proc.stderr.read() if proc.stderr else ""
+        yield proc, first
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        for f in (proc.stdin, proc.stdout, proc.stderr):
+            if f is not None:
+                f.close()
 
 
 def conformance(args: list[str], cwd: str | os.PathLike[str],

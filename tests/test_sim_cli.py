@@ -3,48 +3,23 @@ state and log files; and the state file's atomic writes under kill -9."""
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 import serial
-from conftest import xac1
+from conftest import xac1, xac1_sim
 
 from xac1_proto.recording import read_recording
 from xac1_proto.sim.model import PointData
 from xac1_proto.sim.state import StateFileError, load_state, save_state
 
 TIMEOUT = 5.0
-
-
-@contextlib.contextmanager
-def xac1_sim(*args: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
-    """Run ``xac1 sim ARGS``; yields the process and its first stdout line (where to connect)."""
-    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "sim", *args], stdin=subprocess.PIPE,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert proc.stdout is not None
-        first = proc.stdout.readline().strip()
-        assert first, proc.stderr.read() if proc.stderr else ""
-        yield proc, first
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(TIMEOUT)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        for f in (proc.stdin, proc.stdout, proc.stderr):
-            if f is not None:
-                f.close()
 
 
 def transact(port: serial.SerialBase, data: bytes) -> bytes:

@@ -12,11 +12,11 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 import serial
+from conftest import xac1_sim
 
 from xac1_proto.sim.model import PointData
 from xac1_proto.sim.state import load_state, save_state
@@ -25,30 +25,6 @@ pytestmark = pytest.mark.slow  # simulator processes and signals
 
 TIMEOUT = 5.0
 ANSWER_0RV = b"0RV100\r\n"
-
-
-@contextlib.contextmanager
-def xac1_sim(*args: str, preexec_fn=None) -> Iterator[tuple[subprocess.Popen[str], str]]:  # noqa: ANN001
-    """Run ``xac1 sim ARGS``; yields the process and its first stdout line (where to connect)."""
-    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "sim", *args], stdin=subprocess.PIPE,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=preexec_fn)
-    try:
-        assert proc.stdout is not None
-        first = proc.stdout.readline().strip()
-        assert first, proc.stderr.read() if proc.stderr else ""
-        yield proc, first
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(TIMEOUT)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        for f in (proc.stdin, proc.stdout, proc.stderr):
-            if f is not None:
-                f.close()
 
 
 def finish(proc: subprocess.Popen[str], sig: int) -> tuple[int, str]:
