@@ -22,6 +22,7 @@ from typing import IO
 from xac1_proto import spec
 from xac1_proto.chunk import Chunk, Direction
 from xac1_proto.recording import RecordingWriter
+from xac1_proto.signals import StopRequest
 
 from .analyzer import Analyzer
 from .io.pcapng_writer import JsonlRecorder, Recorder
@@ -101,7 +102,7 @@ def _open(path: str, name: str, baud: int) -> ReadOnlyPort:
 
 
 def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: int = spec.BAUD,
-          reconnect: bool = False, stop: threading.Event | None = None,
+          reconnect: bool = False, stop: StopRequest | None = None,
           started: threading.Event | None = None, err: IO[str] | None = None) -> int:
     """Read both taps until ``stop`` (or Ctrl-C in the caller); 0, or 1 when a tap went away for good.
     Never writes to a tap. The caller closes the session."""

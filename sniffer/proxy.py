@@ -23,6 +23,7 @@ import serial
 import xac1_proto.urlhandler  # noqa: F401  (registers xac1sim:// for the controller port)
 from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
+from xac1_proto.signals import StopRequest
 
 from .live import TICK_S, Clock, Session
 from .taps import PortGone, configure_raw
@@ -232,7 +233,7 @@ class Proxy:
                     problem = f"not delivered: {exc}"
         self._say(f"warning: {len(data)} host bytes {problem}")
 
-    def run(self, stop: threading.Event | None = None) -> int:
+    def run(self, stop: StopRequest | None = None) -> int:
         stop = stop or threading.Event()
         self._reader.start()
         try:

@@ -4,7 +4,10 @@ signals during the ending are ignored and said so; the previous handlers come ba
 
 from __future__ import annotations
 
+import json
 import signal
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -97,3 +100,53 @@ def test_inert_outside_the_main_thread() -> None:
     thread.start()
     thread.join(5)
     assert result == [True] and signal.getsignal(signal.SIGTERM) == before
+
+
+# A signal raised at the n-th traced line executed inside ``end.stop.wait()``, for every n until the
+# wait runs out of lines: the handler runs right there (``raise_signal`` runs it before returning).
+SIGNAL_AT_EVERY_LINE_OF_WAIT = """
+import json, os, signal, sys, time
+from xac1_proto.signals import OrderlyEnd
+
+results = []
+with open(os.devnull, "w") as devnull:
+    n = 1
+    while True:
+        seen, landed = 0, 0.0
+
+        def trace(frame, event, arg):
+            global seen, landed
+            if event == "line":
+                seen += 1
+                if seen == n:
+                    landed = time.monotonic()
+                    signal.raise_signal(signal.SIGTERM)
+            return trace
+
+        with OrderlyEnd("t", "x", err=devnull) as end:
+            end.begin()
+            sys.settrace(trace)
+            woke = end.stop.wait(0.5)
+            sys.settrace(None)
+            if seen < n:  # the wait had fewer lines than n: every landing place was tried
+                break
+            results.append([n, woke, time.monotonic() - landed])
+        n += 1
+print(json.dumps(results))
+"""
+
+
+def test_a_signal_landing_anywhere_inside_stop_wait_wakes_it() -> None:
+    """``xac1 sim`` waits on ``end.stop`` in its main thread; the signal handler sets it in that same
+    thread, wherever the signal lands. A lock-taking event deadlocks when it lands while ``wait()``
+    holds the event's lock (``xac1 sim`` once hung on SIGTERM so, under load); ``stop`` takes none: at
+    every line of ``wait()`` the signal wakes it at once (where it lands just before ``select``, the
+    wake-up fd does). A fresh interpreter, so a deadlock is a
+    timeout, not a hung suite."""
+    r = subprocess.run([sys.executable, "-c", SIGNAL_AT_EVERY_LINE_OF_WAIT], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    results = json.loads(r.stdout)
+    assert len(results) >= 3  # the wait has lines to land on
+    assert all(woke for _, woke, _ in results), results
+    assert max(took for _, _, took in results) < 0.25, results  # at once: not after the 0.5 s wait

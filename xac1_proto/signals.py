@@ -35,13 +35,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+import select
 import signal
 import sys
+import time
+import weakref
 from types import FrameType, TracebackType
-from typing import TYPE_CHECKING, Any, Final, TextIO
-
-if TYPE_CHECKING:
-    import threading
+from typing import Any, Final, Protocol, TextIO
 
 SIGNALS: Final = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 EXIT_EARLY: Final = 2  # a signal before the run began: nothing was done
@@ -53,6 +53,70 @@ def signal_name(signum: int) -> str:
         return signal.Signals(signum).name
     except ValueError:
         return f"signal {signum}"
+
+
+class StopRequest(Protocol):
+    """What a loop polls to know it must end: an ``OrderlyEnd.stop``, or a ``threading.Event``."""
+
+    def is_set(self) -> bool: ...
+
+
+class StopFlag:
+    """Set once, by a signal handler or any thread; polled or waited for by any thread.
+
+    Unlike ``threading.Event`` it takes no lock: a handler runs in the main thread wherever the signal
+    lands, and ``Event.set()`` there deadlocks when the main thread was inside ``Event.wait()`` holding
+    the event's own lock (seen: ``xac1 sim`` hung on SIGTERM under load). Here ``set()`` stores a flag
+    and writes a byte to a pipe, and ``wait()`` selects on that pipe. ``OrderlyEnd`` also makes the pipe
+    the process's signal wake-up fd, so a signal that lands just before ``select`` (its Python handler
+    not yet run) still wakes the wait at once; such a byte is drained and the handler decides."""
+
+    def __init__(self) -> None:
+        self._set = False
+        self._r, self._w = os.pipe()
+        os.set_blocking(self._r, False)
+        os.set_blocking(self._w, False)
+        weakref.finalize(self, _close_fds, self._r, self._w)
+
+    @property
+    def wakeup_fd(self) -> int:
+        """The pipe's write end, for ``signal.set_wakeup_fd``."""
+        return self._w
+
+    def set(self) -> None:
+        if not self._set:
+            self._set = True
+            with contextlib.suppress(OSError):  # a full pipe wakes the waiters as well
+                os.write(self._w, b"!")
+
+    def is_set(self) -> bool:
+        return self._set
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Until the flag is set or ``timeout`` seconds passed; the flag."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while not self._set:
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                break
+            try:
+                ready = select.select([self._r], [], [], remaining)[0]
+            except (OSError, ValueError):  # closed: nothing more will wake it
+                break
+            if ready and not self._set:  # a signal's wake-up byte: its handler runs before we look again
+                self._drain()
+        return self._set
+
+    def _drain(self) -> None:
+        with contextlib.suppress(OSError):
+            while os.read(self._r, 512):
+                pass
+
+
+def _close_fds(*fds: int) -> None:
+    for fd in fds:
+        with contextlib.suppress(OSError):
+            os.close(fd)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -128,14 +192,13 @@ class OrderlyEnd:
         self.what = what
         self.interrupt = interrupt
         self.err = err
-        import threading  # here, not at the top: the dispatcher imports this module for every command
-
-        self.stop: threading.Event = threading.Event()
+        self.stop = StopFlag()
         self.signum: int | None = None
         self.early = False
         self._begun = False
         self._ending = False
         self._previous: dict[int, Any] = {}
+        self._previous_wakeup: int | None = None
 
     @property
     def signal_name(self) -> str | None:
@@ -165,6 +228,8 @@ class OrderlyEnd:
 
     def __enter__(self) -> OrderlyEnd:
         self._previous = _install(self._handle)
+        if self._previous:  # the main thread: a signal wakes ``stop.wait()`` even before its handler ran
+            self._previous_wakeup = signal.set_wakeup_fd(self.stop.wakeup_fd)
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
@@ -172,3 +237,6 @@ class OrderlyEnd:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         self._previous.clear()
+        if self._previous_wakeup is not None:
+            signal.set_wakeup_fd(self._previous_wakeup)
+            self._previous_wakeup = None
