@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import select
 import signal
 import sys
 import time
@@ -94,6 +93,8 @@ class StopFlag:
 
     def wait(self, timeout: float | None = None) -> bool:
         """Until the flag is set or ``timeout`` seconds passed; the flag."""
+        import select  # here: the dispatcher imports this module, and ``xac1 parse`` loads no select
+
         deadline = None if timeout is None else time.monotonic() + timeout
         while not self._set:
             remaining = None if deadline is None else deadline - time.monotonic()
