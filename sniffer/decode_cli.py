@@ -332,11 +332,14 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
         looks = f" ({report.looks_like})" if report.looks_like else ""
         return _error(f"{WRONG_FORMAT_LIMIT} problems and no line data at the start: this is not a "
                       f"{capture.format} capture{looks}; leave --input-format out to detect the format")
+    finally:
+        view.flush()  # the lines decoded so far are out, however the loop ended (Ctrl-C included)
     records = analyzer.close()
     if annotate is not None:
         annotate.verdicts(records)
         annotate.close()
     emit(records)
+    view.flush()
     summary = tally.summary() if tally is not None else analyzer.summary()
     if report.total_problems:
         summary["problems"] = report.total_problems

@@ -11,7 +11,9 @@ Optimized pieces (issue 14) and their references below:
 - ``sniffer.io.base.wallclock``: the whole local second cached (socat headers);
 - ``fastcodec.decode_clean``: the last distinct clean frames remembered (frames are immutable);
 - ``conversation._fields``: ``Frame.fields()`` with the names looked up once a class;
-- ``TextView._print``: without colour, a line is its markup's plain text (was ``console.print``).
+- ``TextView``: a line is built as styled pieces and, without colour, written as their plain text, in
+  batches offline (was rich markup, parsed and printed by the console line by line); ``show_raw`` is one
+  ``str.translate``, ``show_time`` formats the fields (was ``strftime``).
 
 Conversations: well-formed frames of every kind, the lines of docs/protocol.md's rule examples (every
 violation code), letter O, lower case, bad lengths and terminators, junk, and timing edges around the
@@ -33,6 +35,7 @@ from unittest import mock
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from rich.markup import escape
 from strategies import frames
 
 from sniffer import analyzer as analyzer_mod
@@ -49,6 +52,7 @@ from xac1_proto import codec as codec_mod
 from xac1_proto import conversation as conversation_mod
 from xac1_proto import fastcodec as fastcodec_mod
 from xac1_proto import framer as framer_mod
+from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.conversation import Verdict
 
@@ -156,8 +160,68 @@ def _reference_record_fields(self: FrameRecord) -> dict[str, object] | None:
     return None if self.frame is None else self.frame.fields()
 
 
-def _reference_print(self: TextView, markup: str) -> None:
-    self.console.print(markup)
+def _reference_text_write(self: TextView, record: Record) -> None:
+    """The text view as it was: each line built as rich markup and printed by the console. Two display
+    fixes of the new code are applied here too, so the rest can be compared exactly: no emoji codes
+    (``:smile:`` in the bytes was shown as an emoji), and the raw column padded by the characters shown
+    (it was padded with markup escapes counted)."""
+    errors = getattr(record, "line_errors", ())
+    for markup in [_reference_line(record), *_reference_violation_lines(record),
+                   *(f"      [magenta]! line error: {escape(e)}[/]" for e in errors)]:
+        self.console.print(markup, emoji=False)
+
+
+def _reference_line(record: Record) -> str:
+    when = _reference_show_time(record.t)
+    if isinstance(record, TimeoutRecord):
+        waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
+        return (f"{when}       [bold red]device ✗ no answer to #{record.command} "
+                f"({record.header or 'unknown'}){waited}[/]")
+    arrow = "→" if record.dir == "host" else "←"
+    colour = "cyan" if record.dir == "host" else "green"
+    raw = escape(f"{_reference_show_raw(record.raw):<22}")
+    head = f"{when} #{record.i:<4} [{colour}]{record.dir:<6} {arrow} {raw}[/]"
+    if isinstance(record, JunkRecord):
+        return f"{head} [red]junk ({record.reason})[/]"
+    decoded = "?" if record.frame is None else str(record.frame)
+    if record.frame is not None and record.header == spec.ALARM_HEADER:
+        decoded += f" ({spec.alarm_meaning(record.frame.fields()['code'])})"
+    if record.frame is None:
+        decoded = f"{record.header or 'unknown'} (not decodable)"
+    tail = ""
+    if record.dir == "device" and record.reply_to is not None:
+        tail = f"  re #{record.reply_to}"
+        if record.latency_ms is not None:
+            tail += f"  {record.latency_ms:.1f} ms"
+    return f"{head} {escape(decoded)}[dim]{tail}[/]"
+
+
+def _reference_violation_lines(record: Record) -> list[str]:
+    out = []
+    details = list(record.details)
+    for code, side in zip(record.violations, sides_of(record), strict=True):
+        severity, meaning = spec.VIOLATIONS[code]
+        colour = "yellow" if severity == spec.NOTICE else "red"
+        suffix = f" ({code})"
+        detail = "; ".join(d.removesuffix(suffix) for d in details if d.endswith(suffix))
+        mark = "!" if severity == spec.NOTICE else "✗"
+        out.append(f"      [{colour}]{side:<6} {mark} {code}[/]: {escape(meaning)}"
+                   + (f" [dim]— {escape(detail)}[/]" if detail else ""))
+    return out
+
+
+def _reference_show_raw(raw: bytes) -> str:
+    escapes = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
+    return "".join(escapes.get(b) or (chr(b) if 0x20 <= b < 0x7F else f"\\x{b:02X}") for b in raw)
+
+
+def _reference_show_time(t: float | None) -> str:
+    if t is None:
+        return "-" * 12
+    try:
+        return _dt.datetime.fromtimestamp(t).strftime("%H:%M:%S.%f")[:-3]
+    except (ValueError, OverflowError, OSError):
+        return f"{'?' + repr(t):>12.12}"
 
 
 def _reference_wallclock(date: str, clock: str) -> float:
@@ -186,7 +250,7 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(codec_mod, "decode_clean", fastcodec_mod._decode_clean))
         stack.enter_context(mock.patch.object(conversation_mod, "_fields", lambda frame: frame.fields()))
         stack.enter_context(mock.patch.object(socat_mod, "wallclock", _reference_wallclock))
-        stack.enter_context(mock.patch.object(TextView, "_print", _reference_print))
+        stack.enter_context(mock.patch.object(TextView, "write", _reference_text_write))
         yield
 
 
@@ -255,7 +319,7 @@ def library_outputs(chunks: list[Chunk], close_at: float | None = None) -> tuple
         records += analyzer.feed(chunk)
     records += analyzer.close(close_at)
     printed = []
-    for color in (None, False):  # a file or pipe, and --no-color: both plain
+    for color in (None, False, True):  # a file or pipe, --no-color (both plain), and colour forced
         stream = io.StringIO()
         text = TextView(stream, color=color)
         for r in records:
