@@ -13,7 +13,8 @@ Optimized pieces (issue 14) and their references below:
 - ``conversation._fields``: ``Frame.fields()`` with the names looked up once a class;
 - ``TextView``: a line is built as styled pieces and, without colour, written as their plain text, in
   batches offline (was rich markup, parsed and printed by the console line by line); ``show_raw`` is one
-  ``str.translate``, ``show_time`` formats the fields (was ``strftime``).
+  ``str.translate``, ``show_time`` formats the fields (was ``strftime``);
+- ``Frame.__str__``: the last distinct frames' descriptions remembered (was ``describe`` every time).
 
 Conversations: well-formed frames of every kind, the lines of docs/protocol.md's rule examples (every
 violation code), letter O, lower case, bad lengths and terminators, junk, and timing edges around the
@@ -52,6 +53,7 @@ from xac1_proto import codec as codec_mod
 from xac1_proto import conversation as conversation_mod
 from xac1_proto import fastcodec as fastcodec_mod
 from xac1_proto import framer as framer_mod
+from xac1_proto import frames as frames_mod
 from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.conversation import Verdict
@@ -251,6 +253,7 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(conversation_mod, "_fields", lambda frame: frame.fields()))
         stack.enter_context(mock.patch.object(socat_mod, "wallclock", _reference_wallclock))
         stack.enter_context(mock.patch.object(TextView, "write", _reference_text_write))
+        stack.enter_context(mock.patch.object(frames_mod.Frame, "__str__", frames_mod.describe))
         yield
 
 

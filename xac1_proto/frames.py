@@ -8,6 +8,7 @@ elsewhere. ``FRAME_CLASSES`` maps (header, role) to the class.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Any, ClassVar, Final, TypeVar
 
@@ -109,13 +110,26 @@ class Frame:
         return obj
 
     def __str__(self) -> str:
-        parts = [self.HEADER, self.ROLE]
-        for name, value in self.fields().items():
-            field = spec.FIELDS[name]
-            shown = value if field.text else field.show(value)
-            extra = f" ({value})" if field.width > 1 and not field.text else ""
-            parts.append(f"{field.label}={'0x' if field.width > 2 and not field.text else ''}{shown}{extra}")
-        return " ".join(parts)
+        """``0RP answer N=3 V=9 ...``: the header, the role, each field as on the wire (remembered for
+        the last distinct frames: a decode shows the same few frames over and over)."""
+        try:
+            return _described(self)
+        except TypeError:  # a lenient frame holding a value that cannot be hashed
+            return describe(self)
+
+
+def describe(frame: Frame) -> str:
+    """What ``str(frame)`` says, worked out."""
+    parts = [frame.HEADER, frame.ROLE]
+    for name, value in frame.fields().items():
+        field = spec.FIELDS[name]
+        shown = value if field.text else field.show(value)
+        extra = f" ({value})" if field.width > 1 and not field.text else ""
+        parts.append(f"{field.label}={'0x' if field.width > 2 and not field.text else ''}{shown}{extra}")
+    return " ".join(parts)
+
+
+_described = functools.lru_cache(maxsize=4096)(describe)
 
 
 # ---- commands (docs/protocol.md "Frames", rows 1-10 and the alarm reset) ----
