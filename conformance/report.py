@@ -176,8 +176,9 @@ class Report:
             return line + f" ({counts})"
         line = f"{head}: {counts}"
         if self.interrupted:
-            line = (f"INCOMPLETE: {self.missing} of {self.total} checks not run (the run was interrupted "
-                    f"by {self.interrupted})") if head == "INCOMPLETE" else line + \
+            left_out = f"{self.deselected} of them left out with -k; " if self.deselected else ""
+            line = (f"INCOMPLETE: {self.missing} of {self.total} checks not run ({left_out}the run was "
+                    f"interrupted by {self.interrupted})") if head == "INCOMPLETE" else line + \
                 f" (the run was interrupted by {self.interrupted})"
         elif head == "THE DEVICE STOPPED ANSWERING":
             line = f"{head}: the run did not complete ({counts})"

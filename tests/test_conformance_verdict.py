@@ -44,6 +44,9 @@ def test_verdict_and_exit_status(rep: Report, allow_incomplete: bool) -> None:
     status = rep.exit_status(allow_incomplete)
     if rep.interrupted:
         assert status == 2 and "interrupted by SIGTERM" in rep.verdict_line
+        if rep.head == "INCOMPLETE":  # checks -k left out are told apart from those the interrupt cut
+            assert rep.verdict_line.startswith(f"INCOMPLETE: {missing} of {rep.total} checks not run")
+            assert (f"{rep.deselected} of them left out with -k" in rep.verdict_line) == bool(rep.deselected)
     elif failed:
         assert rep.head == "DOES NOT CONFORM" and status == 1
     elif missing or not passed:
