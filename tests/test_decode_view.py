@@ -14,6 +14,7 @@ import pytest
 from sniffer.analyzer import Analyzer
 from sniffer.records import FrameRecord
 from sniffer.view import BATCH_LINES, JsonlView, TextView, show_raw
+from xac1_proto.chunk import HOST, Chunk
 from xac1_proto.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -44,7 +45,7 @@ def test_show_raw_escapes_every_byte_the_same_way() -> None:
 def test_an_offline_view_writes_in_batches_and_loses_nothing_on_flush(fmt: str) -> None:
     """Offline (``live=False``) into a file: lines wait for a batch, then come out in order; ``flush``
     writes the rest. Live (the sniffer): every record is out as soon as it is written."""
-    records = Analyzer().feed(_chunk(b"0RV\r\n" * (BATCH_LINES + 3)))
+    records = Analyzer().feed(Chunk(None, HOST, b"0RV\r\n" * (BATCH_LINES + 3)))
     assert len(records) == BATCH_LINES + 3 and all(isinstance(r, FrameRecord) for r in records)
     offline, live = io.StringIO(), io.StringIO()
     views = [(TextView(offline, False, live=False) if fmt == "text" else JsonlView(offline, live=False)),
@@ -86,9 +87,3 @@ def test_an_interrupted_decode_prints_every_record_decoded_so_far(fmt: str, monk
         assert len(printed) == sum(fed)
     assert printed and printed == whole[:len(printed)]
     assert len(printed) >= sum(fed)  # text: a record may take more than one line (its violations)
-
-
-def _chunk(data: bytes):  # type: ignore[no-untyped-def]
-    from xac1_proto.chunk import HOST, Chunk
-
-    return Chunk(None, HOST, data)
