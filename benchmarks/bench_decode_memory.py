@@ -3,20 +3,20 @@
 Run on demand: ``python benchmarks/bench_decode_memory.py [--mb 50]``. Writes a ``socat -x`` log of
 the gallery's faultless conversation repeated (``captures/make_gallery.py: write_large_socat``) of
 1 MB and of ``--mb`` MB, decodes each in a child process (``--format summary``) and reports each
-child's peak resident memory (its own rusage) and the ratio. The readers stream, so the ratio stays
-near 1 and the peak under 150 MB whatever the size; exits 1 when the peak passes 150 MB.
+child's peak resident memory (``peak_rss.py``: the child's alone) and the ratio. The readers stream,
+so the ratio stays near 1 and the peak under 150 MB whatever the size; exits 1 when it passes 150 MB.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
-import os
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from peak_rss import run_measuring_peak_rss  # this script's directory is on sys.path
 
 ROOT = Path(__file__).resolve().parent.parent
 LIMIT_MB = 150
@@ -32,13 +32,11 @@ def _gallery():
 def decode_peak(path: Path) -> tuple[float, float]:
     """(peak RSS in MB, seconds) of ``xac1 decode --format summary PATH`` in a child process."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "decode", "--format", "summary", str(path)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode != 0:
-        raise SystemExit(f"decode of {path} exited {proc.returncode}")
-    return usage.ru_maxrss / 1024, time.perf_counter() - t0
+    code, peak_mib = run_measuring_peak_rss(
+        [sys.executable, "-m", "xac1_proto", "decode", "--format", "summary", str(path)], cwd=ROOT)
+    if code != 0:
+        raise SystemExit(f"decode of {path} exited {code}")
+    return peak_mib, time.perf_counter() - t0
 
 
 def main() -> int:

@@ -1,8 +1,8 @@
 """Benchmark: ``xac1 decode`` against tshark with a Lua dissector, on the same seeded files, in one run.
 
 Generates (``traffic.py``) a clean and an anomalous conversation of ``--exchanges`` exchanges as an
-RTAC-serial pcapng and a socat ``-x`` log, then times, each as a child process measured with
-``os.wait4`` (wall time and peak RSS of that child alone):
+RTAC-serial pcapng and a socat ``-x`` log, then times, each as a child process (wall time, and the
+peak RSS of that child alone, from ``peak_rss.py``):
 - ``xac1 decode FILE --format summary``, ``--format jsonl`` and the text view (to /dev/null);
 - ``tshark -r FILE.pcapng -X lua_script:<dissector> -d rtacser.data,<proto> -T fields -e <field>``
   with ``minimal_dissector.lua`` (the issue's peer), or ``--dissector PATH PROTO FIELD``;
@@ -27,6 +27,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import traffic  # noqa: E402
+from peak_rss import run_measuring_peak_rss  # noqa: E402
 
 # The children run as an installed tool does: compiled modules cached (an environment that forbids
 # writing them would make every run compile the package) and stdout buffered.
@@ -36,13 +37,11 @@ CHILD_ENV = {k: v for k, v in os.environ.items() if k not in ("PYTHONDONTWRITEBY
 def run(cmd: list[str]) -> tuple[float, float]:
     """(wall seconds, peak RSS MiB) of one child process; its output is discarded."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=CHILD_ENV)
-    _, status, usage = os.wait4(proc.pid, 0)
+    code, peak_mib = run_measuring_peak_rss(cmd, env=CHILD_ENV)
     wall = time.perf_counter() - t0
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode not in (0, 1):  # 1: violations found (the anomalous files)
-        raise SystemExit(f"{' '.join(cmd)} exited {proc.returncode}")
-    return wall, usage.ru_maxrss / 1024
+    if code not in (0, 1):  # 1: violations found (the anomalous files)
+        raise SystemExit(f"{' '.join(cmd)} exited {code}")
+    return wall, peak_mib
 
 
 def library_path(path: Path, fmt: str) -> float:

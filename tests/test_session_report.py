@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from peak_rss import run_measuring_peak_rss
 from strategies import frames
 
 from sniffer.analyzer import Analyzer
@@ -259,11 +260,9 @@ def test_one_million_frames_report_is_bounded(tmp_path):
     and still counts every exchange and violation."""
     capture, out = tmp_path / "big.jsonl", tmp_path / "big.html"
     write_recording(capture, 1_000_000)
-    proc = subprocess.Popen([*XAC1, "decode", str(capture), "--format", "summary", "--report", str(out)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
-    _, status, usage = os.wait4(proc.pid, 0)
-    assert os.waitstatus_to_exitcode(status) == 1  # the letter-O commands are violations
-    rss_mb = usage.ru_maxrss / 1024
+    code, rss_mb = run_measuring_peak_rss([*XAC1, "decode", str(capture), "--format", "summary",
+                                           "--report", str(out)], cwd=ROOT)
+    assert code == 1  # the letter-O commands are violations
     size = out.stat().st_size
     print(f"1M frames: report {size / 1e6:.2f} MB, peak RSS {rss_mb:.0f} MB")
     assert size < MAX_REPORT_BYTES and rss_mb < MAX_RSS_MB
