@@ -126,7 +126,7 @@ with open(os.devnull, "w") as devnull:
         with OrderlyEnd("t", "x", err=devnull) as end:
             end.begin()
             sys.settrace(trace)
-            woke = end.stop.wait(0.5)
+            woke = end.stop.wait(5.0)
             sys.settrace(None)
             if seen < n:  # the wait had fewer lines than n: every landing place was tried
                 break
@@ -140,13 +140,14 @@ def test_a_signal_landing_anywhere_inside_stop_wait_wakes_it() -> None:
     """``xac1 sim`` waits on ``end.stop`` in its main thread; the signal handler sets it in that same
     thread, wherever the signal lands. A lock-taking event deadlocks when it lands while ``wait()``
     holds the event's lock (``xac1 sim`` once hung on SIGTERM so, under load); ``stop`` takes none: at
-    every line of ``wait()`` the signal wakes it at once (where it lands just before ``select``, the
-    wake-up fd does). A fresh interpreter, so a deadlock is a
-    timeout, not a hung suite."""
+    every line of ``wait()`` the signal wakes it at once, not at the end of its 5 s (where it lands just
+    before ``select``, the wake-up fd does). A fresh interpreter, so a deadlock is a timeout, not a hung
+    suite."""
     r = subprocess.run([sys.executable, "-c", SIGNAL_AT_EVERY_LINE_OF_WAIT], capture_output=True,
                        text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     results = json.loads(r.stdout)
     assert len(results) >= 3  # the wait has lines to land on
     assert all(woke for _, woke, _ in results), results
-    assert max(took for _, _, took in results) < 0.25, results  # at once: not after the 0.5 s wait
+    # at once, not after the 5 s wait (the margin is for a loaded CI machine's scheduling)
+    assert max(took for _, _, took in results) < 2.5, results
