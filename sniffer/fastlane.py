@@ -37,18 +37,17 @@ from __future__ import annotations
 
 import dataclasses
 from operator import attrgetter
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final, Protocol
 
-from xac1_proto import spec
+from xac1_proto import Framer, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
-from xac1_proto.conversation import Knowledge
+from xac1_proto.conversation import Conversation, Knowledge
 
 from .records import FrameRecord, Record, Tally
 
-if TYPE_CHECKING:
-    from .analyzer import Analyzer
-
 MEMOS: Final = 64  # memos kept, one per value of the knowledge (the oldest made is dropped first)
+COMMANDS: Final = 256  # commands a memo holds at most (memory stays bounded whatever the traffic)
+ANSWERS: Final = 8  # answers memoised for one command at most
 _KNOWLEDGE_FIELDS: Final = tuple(f.name for f in dataclasses.fields(Knowledge))
 _FACTS: Final = attrgetter(*(n for n in _KNOWLEDGE_FIELDS if n != "points"))
 # the snapshot copies ``points``, the one mutable field; every other field is immutable (a new mutable
@@ -97,6 +96,20 @@ class _Entry:
 Held = tuple[Chunk, _Entry, int]  # a host chunk answered from the memo, not yet fed: (chunk, entry, its i)
 Observed = tuple[Chunk, FrameRecord, tuple[Any, ...]]  # a clean command the full path judged: (chunk,
 # its record, the knowledge before it); its answer may fill the memo
+
+
+class Analyzer(Protocol):
+    """What the fast lane reads and advances of ``sniffer.analyzer.Analyzer`` (named here, not imported:
+    the analyzer imports this module)."""
+
+    conversation: Conversation
+    tally: Tally
+    _framers: dict[str, Framer]
+    _errors: dict[str, list[tuple[int, int, str]]]
+    _device_since: float | None
+    _device_last: float | None
+
+    def _feed(self, chunk: Chunk) -> list[Record]: ...
 
 
 class _Uncounted(Tally):
@@ -211,7 +224,8 @@ class FastLane:
         """Watch for the answer of a host chunk the full path judged clean (not a move)."""
         if len(out) == 1:
             record = out[0]
-            if (type(record) is FrameRecord and not record.violations and record.raw == chunk.data
+            if (type(record) is FrameRecord and not record.violations and not record.line_errors
+                    and record.raw == chunk.data
                     and record.header not in spec.MOVE_HEADERS and record.window_s is not None
                     and not self._host._buf):
                 self._observed = (chunk, record, before)
@@ -281,17 +295,22 @@ class FastLane:
         if (t_host is None) != (t is None) or (t is not None and t_host is not None and not t_host <= t):
             return
         c = self._conversation
-        if not (type(record) is FrameRecord and not record.violations and record.reply_to == host.i
+        if not (type(record) is FrameRecord and not record.violations and not record.line_errors
+                and record.reply_to == host.i
                 and record.raw == chunk.data and not c._queue and c._motion is None
                 and not c._unreset_alarm and not self._device._buf and self.analyzer._device_since is None
                 and not self._errors[HOST] and not self._errors[DEVICE]):
             return
         after = knowledge_snapshot(c.knowledge)
-        if after != before:  # the next host chunk selects the memo of the new knowledge
+        if after != before:  # the knowledge changed: its memo becomes the current one
+            self._select(after)
             return
         self._dirty = False
         assert host.window_s is not None
         entry = self._memo.get(command.data)
         if entry is None:
+            if len(self._memo) >= COMMANDS:
+                return
             entry = self._memo[command.data] = _Entry(host, host.window_s)
-        entry.answers[chunk.data] = record
+        if len(entry.answers) < ANSWERS:
+            entry.answers[chunk.data] = record

@@ -158,7 +158,8 @@ def ops_of(items: list[tuple[tuple[str, int], float, float, int]], timed: bool) 
 def state(analyzer: Analyzer) -> tuple[Any, ...]:
     """Everything the analyzer and its engine keep between calls (caches of decoded frames aside)."""
     c = analyzer.conversation
-    framers = tuple((f._base, bytes(f._buf), list(f._ends), list(f._times)) for f in analyzer._framers.values())
+    framers = tuple((f._base, bytes(f._buf), list(f._ends), list(f._times))
+                    for f in analyzer._framers.values())
     return (c._next_i, c._last_t, c._answer_since, c._unreset_alarm, c.knowledge, list(c._queue), c._motion,
             framers, {d: list(e) for d, e in analyzer._errors.items()}, analyzer._device_since,
             analyzer._device_last, analyzer._closed, analyzer.tally)
