@@ -196,7 +196,7 @@ class FastLane:
         if entry is not None:
             i = self._conversation._next_i
             record = _clone(entry.host, i, chunk.t, None, None)
-            a.tally.add(record)
+            a.tally.add_clean_frame(record)
             self._held = (chunk, entry, i)
             return [record]
         before = self._snap
@@ -279,7 +279,7 @@ class FastLane:
         self._host._base += len(command.data)
         self._device._base += len(chunk.data)
         self.analyzer._device_last = t
-        self.analyzer.tally.add(record)
+        self.analyzer.tally.add_clean_frame(record)
         self.hits += 1
         return [record]
 
