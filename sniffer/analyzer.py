@@ -12,6 +12,11 @@ are not violations), and turns the engine's verdicts into the records of the REA
 
 Captures without time (raw files, interceptty without ``-T``, sigrok without a sample rate): order is all
 there is; the engine's docstring says what it then concludes.
+
+Speed (``fast``, on by default): ``sniffer.fastlane`` memoises what this full path gave for a clean
+command and its answer from the quiet state and gives the same records again when the same two chunks
+come back under the same knowledge, bookkeeping included; every call returns what it returns without it
+(tests/test_fastlane_equivalence.py). The engine is driven only through the analyzer.
 """
 
 from __future__ import annotations
@@ -30,7 +35,9 @@ DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becom
 
 
 class Analyzer:
-    """Feed ``Chunk``s of both directions in the order seen; get records. See the module docstring."""
+    """Feed ``Chunk``s of both directions in the order seen; get records. See the module docstring.
+    ``fast``: the memo of clean exchanges (the same records, sooner); off, every chunk takes the full
+    path."""
 
     def __init__(self, no_answer_timeout: float = NO_ANSWER_TIMEOUT_S, storm_limit: int = spec.STORM_LIMIT,
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,

@@ -312,3 +312,29 @@ def test_the_held_command_is_returned_at_once():
     assert [type(r) for r in got] == [FrameRecord] and analyzer.lane._held is not None
     assert analyzer.summary()["frames"] == {"host": 4, "device": 3}
     assert analyzer.waiting and analyzer.lane._held is None  # the question settled it
+
+
+def test_tally_add_clean_frame_counts_as_add():
+    """The fast lane's tally update equals ``Tally.add`` for clean frames, the forgetting of commands never
+    answered (over 4096 waiting) included."""
+    from sniffer.records import Tally
+
+    ra, rv = fr.ReadVersion(), fr.ReadVersionAnswer(version="100")
+    records: list[FrameRecord] = []
+    for i in range(0, 20_000, 2):
+        records.append(FrameRecord(i=i, t=T0 + i, dir="host", raw=ra.to_bytes(), header="0RV", frame=ra,
+                                   t_last=T0 + i, window_s=1.0))
+        if i % 3 == 0 or i > 19_000:  # most commands left unanswered, then answers to old and new ones
+            reply_to = i if i % 3 == 0 else i - 19_000
+            records.append(FrameRecord(i=i + 1, t=T0 + i + 0.002, dir="device", raw=rv.to_bytes(),
+                                       header="0RV", frame=rv, reply_to=reply_to, latency_s=0.002 * (i % 7),
+                                       t_last=T0 + i + 0.002))
+    records.append(FrameRecord(i=20_001, t=None, dir="device", raw=rv.to_bytes(), header=None, frame=None))
+    added, clean = Tally(), Tally()
+    peak = 0
+    for r in records:
+        added.add(r)
+        clean.add_clean_frame(r)
+        assert clean == added
+        peak = max(peak, len(added._headers))
+    assert clean.summary() == added.summary() and peak == 4096  # the oldest were forgotten
