@@ -50,7 +50,8 @@ GAPS = [0.0, 0.001, 0.5, 0.999999, 1.0, 1.000001, 2.0]
 
 ANOMALIES = ["readback", "alarm", "silent", "letter_o", "lower", "no_cr", "split_host", "split_device",
              "error_host", "error_device", "junk_host", "junk_device", "untimed_command", "untimed_answer",
-             "tick", "tick_late", "ask", "move", "overlap", "unsolicited", "late", "backwards"]
+             "tick", "tick_late", "ask", "move", "overlap", "unsolicited", "late", "backwards", "host_lf",
+             "answer_and_more"]
 clean = st.tuples(st.just("clean"), st.integers(0, 2))  # the first pairs repeat most
 quick = st.sampled_from(LATENCIES[:3])
 step = st.tuples(
@@ -143,6 +144,12 @@ def ops_of(items: list[tuple[tuple[str, int], float, float, int]], timed: bool) 
             chunk(DEVICE, answer, t)
         elif kind == "unsolicited":
             chunk(DEVICE, answer, t)
+        elif kind == "host_lf":  # a terminator without CR from the host
+            chunk(HOST, command[:-2] + b"\n", host_t)
+            chunk(DEVICE, answer, t)
+        elif kind == "answer_and_more":  # the answer and the start of another line in one chunk
+            chunk(HOST, command, host_t)
+            chunk(DEVICE, answer + JUNK[x % len(JUNK)], t)
         elif kind == "backwards":  # a damaged time: the command stamped before the last answer
             chunk(HOST, command, host_t - 2.0 - gap)
             chunk(DEVICE, answer, t - 2.0)
@@ -165,10 +172,11 @@ def state(analyzer: Analyzer) -> tuple[Any, ...]:
             analyzer._device_last, analyzer._closed, analyzer.tally)
 
 
-def run(ops: list[Op], fast: bool, close_at: float | None) -> tuple[list[Any], Analyzer]:
+def run(ops: list[Op], fast: bool, close_at: float | None,
+        options: dict[str, Any] | None = None) -> tuple[list[Any], Analyzer]:
     """Every call's result, in order (the close's last), and the analyzer's state after each call
     (None while the fast lane holds a command: the engine has not seen it yet)."""
-    analyzer = Analyzer(fast=fast)
+    analyzer = Analyzer(fast=fast, **(options or {}))
     out: list[Any] = []
     for what, arg in ops:
         if what == "feed":
@@ -191,10 +199,11 @@ def _exact(record: Record) -> tuple[type, dict[str, Any], str]:
     return type(record), dict(vars(record)), record.to_json()
 
 
-def assert_same(ops: list[Op], close_at: float | None = None) -> Analyzer:
+def assert_same(ops: list[Op], close_at: float | None = None,
+                options: dict[str, Any] | None = None) -> Analyzer:
     """The fast lane's results equal the full path's, call by call; returns the fast analyzer."""
-    fast, analyzer = run(ops, True, close_at)
-    slow, _ = run(ops, False, close_at)
+    fast, analyzer = run(ops, True, close_at, options)
+    slow, _ = run(ops, False, close_at, options)
     assert len(fast) == len(slow)
     for got, want in zip(fast, slow, strict=True):
         if isinstance(got, tuple) and got[:1] == ("state",) and got[1] is None:
@@ -211,15 +220,19 @@ def end_of(ops: list[Op]) -> float:
     return max((t for t in times if t is not None), default=T0)
 
 
-@settings(max_examples=1000, deadline=None)
-@given(steps, st.booleans(), st.sampled_from([None, 0.0, 0.5, 1.0, 5.0]))
+# the analyzer's options: another answer window, no idle flush, a storm limit of one
+OPTIONS = [{}, {}, {}, {"no_answer_timeout": 0.5}, {"device_idle_flush": None}, {"storm_limit": 1}]
+
+
+@settings(max_examples=2000, deadline=None)
+@given(steps, st.booleans(), st.sampled_from([None, 0.0, 0.5, 1.0, 5.0]), st.sampled_from(OPTIONS))
 @example([(("clean", 0), 0.0, 0.002, 0)] * 3 + [(("tick", 0), 0.0, 0.5, 0), (("clean", 0), 0.0, 1.0, 0)],
-         True, None)
-@example([(("clean", 1), 0.0, 0.002, 0)] * 3 + [(("silent", 1), 0.0, 0.002, 0)], True, 0.999999)
-def test_fast_lane_gives_the_full_paths_records(items, timed, close_after):
+         True, None, {})
+@example([(("clean", 1), 0.0, 0.002, 0)] * 3 + [(("silent", 1), 0.0, 0.002, 0)], True, 0.999999, {})
+def test_fast_lane_gives_the_full_paths_records(items, timed, close_after, options):
     ops = ops_of(items, timed)
     close_at = None if close_after is None else end_of(ops) + close_after
-    assert_same(ops, close_at)
+    assert_same(ops, close_at, options)
 
 
 # runs of one clean exchange repeated (2 to 12 times, quick answers), each run ended by any step
@@ -227,15 +240,15 @@ runs = st.lists(st.tuples(st.integers(0, len(PAIRS) - 1), st.integers(2, 12), qu
                 min_size=1, max_size=12)
 
 
-@settings(max_examples=500, deadline=None)
-@given(runs, st.booleans(), st.sampled_from([None, 0.0, 1.0, 5.0]))
-def test_fast_lane_on_runs_of_repeated_exchanges(items, timed, close_after):
+@settings(max_examples=800, deadline=None)
+@given(runs, st.booleans(), st.sampled_from([None, 0.0, 1.0, 5.0]), st.sampled_from(OPTIONS))
+def test_fast_lane_on_runs_of_repeated_exchanges(items, timed, close_after, options):
     """Long runs of hits, each ended by an anomaly (or a tick, a question, a move...)."""
     flat = []
     for k, repeat, latency, end in items:
         flat += [(("clean", k), 0.01, latency, 0)] * repeat + [end]
     ops = ops_of(flat, timed)
-    assert_same(ops, None if close_after is None else end_of(ops) + close_after)
+    assert_same(ops, None if close_after is None else end_of(ops) + close_after, options)
 
 
 @settings(max_examples=100, deadline=None)
