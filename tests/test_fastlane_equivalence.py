@@ -42,7 +42,7 @@ PAIRS: list[tuple[bytes, bytes, bytes]] = [
         (fr.AlarmReset(), fr.AlarmResetAnswer(), fr.AlarmAnswer(code=0x0E)),
     ]]
 MOVE = (b"0MV3C3001000\r\n", b"0MV3C3001000\r\n")
-ALARMS = [fr.AlarmAnswer(code=1).to_bytes(), fr.AlarmAnswer(code=8).to_bytes()]
+ALARMS = [fr.AlarmAnswer(code=code).to_bytes() for code in (0x01, 0x08, 0x0E, 0x0E)]  # 0E: a latched stop
 JUNK = [b"\x01\x02\r\n", b"0R", b"\r\n", b"0RV1", b"\xff"]
 # answer delays around the 1 s window and the 1 s idle flush, gaps between exchanges
 LATENCIES = [0.001, 0.0025, 0.5, 0.999999, 1.0, 1.000001, 1.5, 3.0]
@@ -86,7 +86,7 @@ def ops_of(items: list[tuple[tuple[str, int], float, float, int]], timed: bool) 
             chunk(DEVICE, wrong, t)
         elif kind == "alarm":
             chunk(HOST, command, host_t)
-            chunk(DEVICE, ALARMS[x % 2], t)
+            chunk(DEVICE, ALARMS[x % len(ALARMS)], t)
         elif kind == "silent":
             chunk(HOST, command, host_t)
         elif kind == "letter_o":
@@ -351,3 +351,19 @@ def test_tally_add_clean_frame_counts_as_add():
         assert clean == added
         peak = max(peak, len(added._headers))
     assert clean.summary() == added.summary() and peak == 4096  # the oldest were forgotten
+
+
+def test_an_alarm_answer_that_changes_no_knowledge_is_not_memoised():
+    """With emergency stop (0E) latched after a reset that failed, a command answered 0%%0E changes no
+    knowledge, but leaves an alarm to reset (alarm-ignored on the next command): never a memo entry."""
+    reset, _, failed = PAIRS[6]
+    c, a, _ = PAIRS[0]
+    estop = fr.AlarmAnswer(code=0x0E).to_bytes()
+    items = [(("clean", 0), 0.01, 0.002, 0)] * 3
+    ops = ops_of(items, timed=True)
+    t = end_of(ops)
+    for _ in range(4):
+        for who, data in ((HOST, reset), (DEVICE, failed), (HOST, c), (DEVICE, estop)):
+            t += 0.01
+            ops.append(("feed", Chunk(t, who, data)))  # type: ignore[arg-type]
+    assert_same(ops)
