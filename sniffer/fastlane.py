@@ -45,9 +45,12 @@ from xac1_proto.conversation import Conversation, Knowledge
 
 from .records import FrameRecord, Record, Tally
 
-MEMOS: Final = 64  # memos kept, one per value of the knowledge (the oldest made is dropped first)
-COMMANDS: Final = 256  # commands a memo holds at most (memory stays bounded whatever the traffic)
-ANSWERS: Final = 8  # answers memoised for one command at most
+# Bounds (memory stays flat whatever the traffic: about 2 KB a memoised command): memos kept, one per
+# value of the knowledge, the least recently used dropped first; memoised commands in all of them; answers
+# memoised for one command.
+MEMOS: Final = 128
+COMMANDS: Final = 4096
+ANSWERS: Final = 8
 _KNOWLEDGE_FIELDS: Final = tuple(f.name for f in dataclasses.fields(Knowledge))
 _FACTS: Final = attrgetter(*(n for n in _KNOWLEDGE_FIELDS if n != "points"))
 # the snapshot copies ``points``, the one mutable field; every other field is immutable (a new mutable
@@ -136,7 +139,8 @@ class FastLane:
         self._errors = analyzer._errors
         self._memo: dict[bytes, _Entry] = {}  # the memo of the knowledge ``_snap``
         self._snap: tuple[Any, ...] | None = None
-        self._memos: dict[tuple[Any, ...], dict[bytes, _Entry]] = {}  # by the knowledge, hashable
+        self._memos: dict[tuple[Any, ...], dict[bytes, _Entry]] = {}  # by the knowledge (hashable), LRU
+        self._commands = 0  # memoised commands in all memos
         self._dirty = True  # the full path ran since ``_snap`` was taken: the knowledge may differ
         self._held: Held | None = None
         self._observed: Observed | None = None
@@ -213,12 +217,22 @@ class FastLane:
             return
         facts, points = now
         key = facts, frozenset(points.items())  # facts are frozen dataclasses: hashable
-        memo = self._memos.get(key)
+        memos = self._memos
+        memo = memos.pop(key, None)
         if memo is None:
-            if len(self._memos) >= MEMOS:
-                del self._memos[next(iter(self._memos))]
-            memo = self._memos[key] = {}
+            memo = {}
+            if len(memos) >= MEMOS:
+                self._drop_oldest()
+        memos[key] = memo  # the most recently used last
         self._snap, self._memo = now, memo
+
+    def _drop_oldest(self) -> bool:
+        """Forget the least recently used memo, never the current one; False when there is none other."""
+        oldest = next(iter(self._memos), None)
+        if oldest is None or self._memos[oldest] is self._memo:
+            return False
+        self._commands -= len(self._memos.pop(oldest))
+        return True
 
     def _observe(self, chunk: Chunk, out: list[Record], before: tuple[Any, ...]) -> None:
         """Watch for the answer of a host chunk the full path judged clean (not a move)."""
@@ -309,8 +323,10 @@ class FastLane:
         assert host.window_s is not None
         entry = self._memo.get(command.data)
         if entry is None:
-            if len(self._memo) >= COMMANDS:
-                return
+            while self._commands >= COMMANDS:
+                if not self._drop_oldest():
+                    return
             entry = self._memo[command.data] = _Entry(host, host.window_s)
+            self._commands += 1
         if len(entry.answers) < ANSWERS:
             entry.answers[chunk.data] = record

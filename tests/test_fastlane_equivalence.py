@@ -367,3 +367,22 @@ def test_an_alarm_answer_that_changes_no_knowledge_is_not_memoised():
             t += 0.01
             ops.append(("feed", Chunk(t, who, data)))  # type: ignore[arg-type]
     assert_same(ops)
+
+
+@pytest.mark.parametrize(("memos", "commands"), [(2, 3), (1, 1), (3, 100)])
+def test_the_bounds_forget_memos_and_change_nothing(monkeypatch, memos, commands):
+    """Few memos and few commands allowed: the least recently used memos are forgotten, the records stay
+    the full path's."""
+    from sniffer import fastlane
+
+    monkeypatch.setattr(fastlane, "MEMOS", memos)
+    monkeypatch.setattr(fastlane, "COMMANDS", commands)
+    items = []
+    for n in range(350):
+        kind = "clean" if n % 11 else ("readback", "alarm", "silent")[n // 11 % 3]
+        items.append(((kind, n % 7), 0.01, 0.002, n))
+    analyzer = assert_same(ops_of(items, timed=True))
+    lane = analyzer.lane
+    assert lane is not None and lane.hits > 0
+    assert len(lane._memos) <= max(memos, 2) and lane._commands <= commands
+    assert lane._commands == sum(len(m) for m in lane._memos.values())
