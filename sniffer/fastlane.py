@@ -22,15 +22,19 @@ same verdicts again, but for the per-event numbers and times (``i``, ``t``, ``t_
   again, and then goes on as without the fast lane. Every call returns the records it returns without
   the fast lane: holding changes when the engine sees a chunk, never what comes out or when.
 
-Validity: the memo belongs to one value of the knowledge. Any full-path call may change it (``dirty``);
-the next host chunk compares a snapshot of the knowledge with the memo's and clears the memo when they
-differ. An exchange fills the memo only when both its records are clean, the engine is quiet before and
-after it and the knowledge before equals the knowledge after. Moves (0MP, 0MV) are never memoised: their
-answer window depends on the knowledge and they change it.
+Validity: a memo belongs to one value of the knowledge; memos are kept by that value (a snapshot: the
+facts, and the points copied), so traffic that goes back and forth between a few values (0RS learns the
+OUT ports that 0WS then establishes) keeps its memos. Any full-path call may change the knowledge
+(``dirty``): the next host chunk takes a snapshot and makes the memo of that value the current one. An
+exchange fills the memo only when both its records are clean, the engine is quiet before and after it
+and the knowledge before equals the knowledge after. Moves (0MP, 0MV) are never memoised: their answer
+window depends on the knowledge and they change it. The engine must be driven only through the analyzer
+(nothing here sees ``power_on`` or ``stop_input`` called on it directly).
 
 Not covered (they take the full path): ticks or other calls between a held command and its answer (the
 live sniffer ticks on every poll), chunks with a line error or split frames, a command timed and its
-answer not (or the reverse), times that are not finite or run backwards.
+answer not (or the reverse), times that are not finite or run backwards. Equivalence with the full path:
+tests/test_fastlane_equivalence.py.
 """
 
 from __future__ import annotations
@@ -81,7 +85,6 @@ def knowledge_snapshot(k: Knowledge) -> tuple[Any, ...]:
     """The knowledge's value, frozen: every field but ``points`` (facts are immutable), then ``points``
     copied (the one mutable field)."""
     return _FACTS(k), dict(k.points)
-
 
 
 class _Entry:
