@@ -25,11 +25,14 @@ same verdicts again, but for the per-event numbers and times (``i``, ``t``, ``t_
 Validity: a memo belongs to one value of the knowledge; memos are kept by that value (a snapshot: the
 facts, and the points copied), so traffic that goes back and forth between a few values (0RS learns the
 OUT ports that 0WS then establishes) keeps its memos. Any full-path call may change the knowledge
-(``dirty``): the next host chunk takes a snapshot and makes the memo of that value the current one. An
+(``dirty``): the next host chunk takes a snapshot; when the value changed, an empty memo is current
+until an exchange is memoised, and then the kept memo of that value, if any, takes its place. An
 exchange fills the memo only when both its records are clean, the engine is quiet before and after it
-and the knowledge before equals the knowledge after. Moves (0MP, 0MV) are never memoised: their answer
-window depends on the knowledge and they change it. The engine must be driven only through the analyzer
-(nothing here sees ``power_on`` or ``stop_input`` called on it directly).
+and the knowledge before equals the knowledge after; clean exchanges that change the knowledge many
+times in a row make the lane step aside for a while (``CHANGES``, ``BACKOFF``). Moves (0MP, 0MV) are
+never memoised: their answer window depends on the knowledge and they change it. The engine must be
+driven only through the analyzer (nothing here sees ``power_on`` or ``stop_input`` called on it
+directly).
 
 Not covered (they take the full path): ticks or other calls between a held command and its answer (the
 live sniffer ticks on every poll), chunks with a line error or split frames, a command timed and its
@@ -55,6 +58,11 @@ from .records import FrameRecord, Record, Tally
 MEMOS: Final = 128
 COMMANDS: Final = 4096
 ANSWERS: Final = 8
+# Traffic whose clean exchanges each change the knowledge (new point values written, one after another)
+# is never memoised: after CHANGES such exchanges in a row, the next BACKOFF chunks take the full path
+# without the lane's own checks, then it looks again.
+CHANGES: Final = 8
+BACKOFF: Final = 64
 _KNOWLEDGE_FIELDS: Final = tuple(f.name for f in dataclasses.fields(Knowledge))
 _FACTS: Final = attrgetter(*(n for n in _KNOWLEDGE_FIELDS if n != "points"))
 # the snapshot copies ``points``, the one mutable field; every other field is immutable (a new mutable
@@ -142,11 +150,14 @@ class FastLane:
         self._errors = analyzer._errors
         self._memo: dict[bytes, _Entry] = {}  # the memo of the knowledge ``_snap``
         self._snap: tuple[Any, ...] | None = None
+        self._registered = False  # is ``_memo`` kept in ``_memos`` (else it is empty)?
         self._memos: dict[tuple[Any, ...], dict[bytes, _Entry]] = {}  # by the knowledge (hashable), LRU
         self._commands = 0  # memoised commands in all memos
         self._dirty = True  # the full path ran since ``_snap`` was taken: the knowledge may differ
         self._held: Held | None = None
         self._observed: Observed | None = None
+        self._changes = 0  # clean exchanges in a row that changed the knowledge
+        self._skip = 0  # chunks left to pass straight to the full path (``BACKOFF``)
         self._uncounted = _Uncounted()
 
     # ---- entry points (the analyzer's) ----
@@ -167,6 +178,10 @@ class FastLane:
             out = a._feed(chunk)
             self._learn(observed, chunk, out)
             return out
+        if self._skip:
+            self._skip -= 1
+            self._dirty = True
+            return a._feed(chunk)
         c = self._conversation
         t = chunk.t
         # the quiet state (framers' buffers read directly: ``pending`` is their length)
@@ -214,20 +229,32 @@ class FastLane:
         return out
 
     def _select(self, now: tuple[Any, ...]) -> None:
-        """Make the memo of the knowledge ``now`` the current one (a new, empty one if none is kept)."""
+        """The knowledge is ``now`` (a snapshot just taken): keep the current memo if it is that value's,
+        else start afresh (``_fresh``)."""
         self._dirty = False
-        if now == self._snap:
-            return
-        facts, points = now
+        if now != self._snap:
+            self._fresh(now)
+
+    def _fresh(self, now: tuple[Any, ...]) -> None:
+        """The knowledge changed to ``now``: an empty memo, not yet looked up among the kept ones. The
+        look-up (a hash of every fact) waits for the first exchange to memoise: traffic whose every
+        exchange changes the knowledge (new point values written) never pays for it."""
+        self._snap, self._memo, self._registered, self._dirty = now, {}, False, False
+
+    def _register(self) -> None:
+        """The current memo is about to be filled: the kept memo of the same knowledge, if there is one,
+        becomes the current one; the least recently used are dropped beyond ``MEMOS``."""
+        assert self._snap is not None
+        facts, points = self._snap
         key = facts, frozenset(points.items())  # facts are frozen dataclasses: hashable
         memos = self._memos
         memo = memos.pop(key, None)
         if memo is None:
-            memo = {}
+            memo = self._memo  # empty: nothing is memoised before registering
             if len(memos) >= MEMOS:
                 self._drop_oldest()
         memos[key] = memo  # the most recently used last
-        self._snap, self._memo = now, memo
+        self._memo, self._registered = memo, True
 
     def _drop_oldest(self) -> bool:
         """Forget the least recently used memo, never the current one; False when there is none other."""
@@ -319,10 +346,16 @@ class FastLane:
                 and not self._errors[HOST] and not self._errors[DEVICE]):
             return
         after = knowledge_snapshot(c.knowledge)
-        if after != before:  # the knowledge changed: its memo becomes the current one
-            self._select(after)
+        if after != before:
+            self._fresh(after)
+            self._changes += 1
+            if self._changes >= CHANGES:
+                self._changes, self._skip = 0, BACKOFF
             return
+        self._changes = 0
         self._dirty = False
+        if not self._registered:
+            self._register()
         assert host.window_s is not None
         entry = self._memo.get(command.data)
         if entry is None:

@@ -386,3 +386,25 @@ def test_the_bounds_forget_memos_and_change_nothing(monkeypatch, memos, commands
     assert lane is not None and lane.hits > 0
     assert len(lane._memos) <= max(memos, 2) and lane._commands <= commands
     assert lane._commands == sum(len(m) for m in lane._memos.values())
+
+
+@pytest.mark.parametrize(("changes", "backoff"), [(8, 64), (2, 3), (1, 1)])
+def test_exchanges_that_change_the_knowledge_back_the_lane_off(monkeypatch, changes, backoff):
+    """Clean exchanges that each write new point values are never memoised: the lane backs off (the
+    full path alone) and looks again; the repeated exchanges after them are memoised again."""
+    from sniffer import fastlane
+
+    monkeypatch.setattr(fastlane, "CHANGES", changes)
+    monkeypatch.setattr(fastlane, "BACKOFF", backoff)
+    ops: list[Op] = []
+    t = T0
+    for n in range(240):
+        if n % 80 < 25:  # a new value for point 1..15 every time, an echo of it
+            c: fr.Frame = fr.WritePoint(n=n % 15 + 1, v=n % 9 + 1, a=1, o=0, pos=n)
+            a: fr.Frame = fr.WritePointAnswer(n=n % 15 + 1, v=n % 9 + 1, a=1, o=0, pos=n)
+        else:
+            c, a = fr.ReadVersion(), fr.ReadVersionAnswer(version="100")
+        t += 0.01
+        ops += [("feed", Chunk(t, HOST, c.to_bytes())), ("feed", Chunk(t + 0.002, DEVICE, a.to_bytes()))]
+    analyzer = assert_same(ops, end_of(ops) + 2.0)
+    assert analyzer.lane is not None and analyzer.lane.hits > 10
