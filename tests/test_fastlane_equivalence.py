@@ -13,14 +13,18 @@ The generated conversations of tests/test_decode_equivalence.py and its corpus a
 
 from __future__ import annotations
 
+import contextlib
 import json
+from collections.abc import Iterator
 from typing import Any
+from unittest import mock
 
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from test_decode_equivalence import chunks_of, corpus_cases, cuts, events, gaps, line_error_at
 
+from sniffer import fastlane
 from sniffer.analyzer import Analyzer
 from sniffer.records import FrameRecord, Record
 from xac1_proto import frames as fr
@@ -222,17 +226,30 @@ def end_of(ops: list[Op]) -> float:
 
 # the analyzer's options: another answer window, no idle flush, a storm limit of one
 OPTIONS = [{}, {}, {}, {"no_answer_timeout": 0.5}, {"device_idle_flush": None}, {"storm_limit": 1}]
+# the lane's bounds, small ones too: memos forgotten, the lane stepping aside often
+BOUNDS = [{}, {}, {"CHANGES": 1, "BACKOFF": 1}, {"CHANGES": 2, "BACKOFF": 5},
+          {"MEMOS": 1, "COMMANDS": 2}, {"MEMOS": 2, "COMMANDS": 3, "CHANGES": 3, "BACKOFF": 2}]
+
+
+@contextlib.contextmanager
+def bounds(values: dict[str, int]) -> Iterator[None]:
+    with contextlib.ExitStack() as stack:
+        for name, value in values.items():
+            stack.enter_context(mock.patch.object(fastlane, name, value))
+        yield
 
 
 @settings(max_examples=2000, deadline=None)
-@given(steps, st.booleans(), st.sampled_from([None, 0.0, 0.5, 1.0, 5.0]), st.sampled_from(OPTIONS))
+@given(steps, st.booleans(), st.sampled_from([None, 0.0, 0.5, 1.0, 5.0]), st.sampled_from(OPTIONS),
+       st.sampled_from(BOUNDS))
 @example([(("clean", 0), 0.0, 0.002, 0)] * 3 + [(("tick", 0), 0.0, 0.5, 0), (("clean", 0), 0.0, 1.0, 0)],
-         True, None, {})
-@example([(("clean", 1), 0.0, 0.002, 0)] * 3 + [(("silent", 1), 0.0, 0.002, 0)], True, 0.999999, {})
-def test_fast_lane_gives_the_full_paths_records(items, timed, close_after, options):
+         True, None, {}, {})
+@example([(("clean", 1), 0.0, 0.002, 0)] * 3 + [(("silent", 1), 0.0, 0.002, 0)], True, 0.999999, {}, {})
+def test_fast_lane_gives_the_full_paths_records(items, timed, close_after, options, lane_bounds):
     ops = ops_of(items, timed)
     close_at = None if close_after is None else end_of(ops) + close_after
-    assert_same(ops, close_at, options)
+    with bounds(lane_bounds):
+        assert_same(ops, close_at, options)
 
 
 # runs of one clean exchange repeated (2 to 12 times, quick answers), each run ended by any step
@@ -241,14 +258,16 @@ runs = st.lists(st.tuples(st.integers(0, len(PAIRS) - 1), st.integers(2, 12), qu
 
 
 @settings(max_examples=800, deadline=None)
-@given(runs, st.booleans(), st.sampled_from([None, 0.0, 1.0, 5.0]), st.sampled_from(OPTIONS))
-def test_fast_lane_on_runs_of_repeated_exchanges(items, timed, close_after, options):
+@given(runs, st.booleans(), st.sampled_from([None, 0.0, 1.0, 5.0]), st.sampled_from(OPTIONS),
+       st.sampled_from(BOUNDS))
+def test_fast_lane_on_runs_of_repeated_exchanges(items, timed, close_after, options, lane_bounds):
     """Long runs of hits, each ended by an anomaly (or a tick, a question, a move...)."""
     flat = []
     for k, repeat, latency, end in items:
         flat += [(("clean", k), 0.01, latency, 0)] * repeat + [end]
     ops = ops_of(flat, timed)
-    assert_same(ops, None if close_after is None else end_of(ops) + close_after, options)
+    with bounds(lane_bounds):
+        assert_same(ops, None if close_after is None else end_of(ops) + close_after, options)
 
 
 @settings(max_examples=100, deadline=None)
