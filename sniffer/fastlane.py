@@ -59,10 +59,12 @@ MEMOS: Final = 128
 COMMANDS: Final = 4096
 ANSWERS: Final = 8
 # Traffic whose clean exchanges each change the knowledge (new point values written, one after another)
-# is never memoised: after CHANGES such exchanges in a row, the next BACKOFF chunks take the full path
-# without the lane's own checks, then it looks again.
+# is never memoised: after CHANGES such exchanges with no hit or memoised exchange between, the next
+# BACKOFF chunks take the full path without the lane's own checks, then it looks again; each time in a
+# row it finds nothing, it steps aside twice as long (up to BACKOFF_MAX).
 CHANGES: Final = 8
 BACKOFF: Final = 64
+BACKOFF_MAX: Final = 4096
 _KNOWLEDGE_FIELDS: Final = tuple(f.name for f in dataclasses.fields(Knowledge))
 _FACTS: Final = attrgetter(*(n for n in _KNOWLEDGE_FIELDS if n != "points"))
 # the snapshot copies ``points``, the one mutable field; every other field is immutable (a new mutable
@@ -150,14 +152,18 @@ class FastLane:
         self._errors = analyzer._errors
         self._memo: dict[bytes, _Entry] = {}  # the memo of the knowledge ``_snap``
         self._snap: tuple[Any, ...] | None = None
-        self._registered = False  # is ``_memo`` kept in ``_memos`` (else it is empty)?
+        self._registered = False  # is ``_memo`` kept in ``_memos`` (as ``_key``; else it is empty)?
+        self._key: tuple[Any, ...] | None = None
+        # the memo current before the last change of the knowledge: (snapshot, memo, key), if kept
+        self._previous: tuple[Any, dict[bytes, _Entry], Any] | None = None
         self._memos: dict[tuple[Any, ...], dict[bytes, _Entry]] = {}  # by the knowledge (hashable), LRU
         self._commands = 0  # memoised commands in all memos
         self._dirty = True  # the full path ran since ``_snap`` was taken: the knowledge may differ
         self._held: Held | None = None
         self._observed: Observed | None = None
-        self._changes = 0  # clean exchanges in a row that changed the knowledge
+        self._changes = 0  # clean exchanges that changed the knowledge, none memoised or hit between
         self._skip = 0  # chunks left to pass straight to the full path (``BACKOFF``)
+        self._backoff = BACKOFF  # the next time the lane steps aside, for this many chunks
         self._uncounted = _Uncounted()
 
     # ---- entry points (the analyzer's) ----
@@ -236,10 +242,19 @@ class FastLane:
             self._fresh(now)
 
     def _fresh(self, now: tuple[Any, ...]) -> None:
-        """The knowledge changed to ``now``: an empty memo, not yet looked up among the kept ones. The
-        look-up (a hash of every fact) waits for the first exchange to memoise: traffic whose every
-        exchange changes the knowledge (new point values written) never pays for it."""
-        self._snap, self._memo, self._registered, self._dirty = now, {}, False, False
+        """The knowledge changed to ``now``. Back to the value before the last (0RS learns the OUT ports,
+        0WS establishes them again): its memo, if still kept. Else an empty memo, not yet looked up among
+        the kept ones: the look-up (a hash of every fact) waits for the first exchange to memoise, so
+        traffic whose every exchange changes the knowledge (new point values written) never pays for it."""
+        back = self._previous
+        self._previous = (self._snap, self._memo, self._key) if self._registered else None
+        self._dirty = False
+        if back is not None and back[0] == now and self._memos.get(back[2]) is back[1]:
+            memo, key = back[1], back[2]
+            self._memos[key] = self._memos.pop(key)  # the most recently used last
+            self._snap, self._memo, self._key, self._registered = now, memo, key, True
+            return
+        self._snap, self._memo, self._key, self._registered = now, {}, None, False
 
     def _register(self) -> None:
         """The current memo is about to be filled: the kept memo of the same knowledge, if there is one,
@@ -254,7 +269,7 @@ class FastLane:
             if len(memos) >= MEMOS:
                 self._drop_oldest()
         memos[key] = memo  # the most recently used last
-        self._memo, self._registered = memo, True
+        self._memo, self._key, self._registered = memo, key, True
 
     def _drop_oldest(self) -> bool:
         """Forget the least recently used memo, never the current one; False when there is none other."""
@@ -325,6 +340,7 @@ class FastLane:
         self.analyzer._device_last = t
         self.analyzer.tally.add_clean_frame(record)
         self.hits += 1
+        self._changes, self._backoff = 0, BACKOFF
         return [record]
 
     def _learn(self, observed: Observed, chunk: Chunk, out: list[Record]) -> None:
@@ -350,9 +366,10 @@ class FastLane:
             self._fresh(after)
             self._changes += 1
             if self._changes >= CHANGES:
-                self._changes, self._skip = 0, BACKOFF
+                self._changes, self._skip = 0, self._backoff
+                self._backoff = min(2 * self._backoff, BACKOFF_MAX)
             return
-        self._changes = 0
+        self._changes, self._backoff = 0, BACKOFF
         self._dirty = False
         if not self._registered:
             self._register()

@@ -227,7 +227,7 @@ def end_of(ops: list[Op]) -> float:
 # the analyzer's options: another answer window, no idle flush, a storm limit of one
 OPTIONS = [{}, {}, {}, {"no_answer_timeout": 0.5}, {"device_idle_flush": None}, {"storm_limit": 1}]
 # the lane's bounds, small ones too: memos forgotten, the lane stepping aside often
-BOUNDS = [{}, {}, {"CHANGES": 1, "BACKOFF": 1}, {"CHANGES": 2, "BACKOFF": 5},
+BOUNDS = [{}, {}, {"CHANGES": 1, "BACKOFF": 1}, {"CHANGES": 2, "BACKOFF": 5, "BACKOFF_MAX": 7},
           {"MEMOS": 1, "COMMANDS": 2}, {"MEMOS": 2, "COMMANDS": 3, "CHANGES": 3, "BACKOFF": 2}]
 
 
