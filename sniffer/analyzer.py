@@ -12,6 +12,11 @@ are not violations), and turns the engine's verdicts into the records of the REA
 
 Captures without time (raw files, interceptty without ``-T``, sigrok without a sample rate): order is all
 there is; the engine's docstring says what it then concludes.
+
+Speed (``fast``, on by default): ``sniffer.fastlane`` memoises what this full path gave for a clean
+command and its answer from the quiet state and gives the same records again when the same two chunks
+come back under the same knowledge, bookkeeping included; every call returns what it returns without it
+(tests/test_fastlane_equivalence.py). The engine is driven only through the analyzer.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from xac1_proto import FrameBytes, Framer, Junk, motion, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
+from .fastlane import FastLane
 from .records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
@@ -29,11 +35,13 @@ DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becom
 
 
 class Analyzer:
-    """Feed ``Chunk``s of both directions in the order seen; get records. See the module docstring."""
+    """Feed ``Chunk``s of both directions in the order seen; get records. See the module docstring.
+    ``fast``: the memo of clean exchanges (the same records, sooner); off, every chunk takes the full
+    path."""
 
     def __init__(self, no_answer_timeout: float = NO_ANSWER_TIMEOUT_S, storm_limit: int = spec.STORM_LIMIT,
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,
-                 device_idle_flush: float | None = DEVICE_IDLE_FLUSH_S) -> None:
+                 device_idle_flush: float | None = DEVICE_IDLE_FLUSH_S, fast: bool = True) -> None:
         self.conversation = Conversation(no_answer_timeout=no_answer_timeout, storm_limit=storm_limit,
                                          speeds=speeds)
         self.device_idle_flush = device_idle_flush
@@ -43,6 +51,8 @@ class Analyzer:
         self._device_since: float | None = None  # time of the oldest pending device byte
         self._device_last: float | None = None  # time of the latest device chunk
         self._closed = False
+        # the memo of clean exchanges (sniffer/fastlane.py): the same records, sooner; None: off
+        self.lane: FastLane | None = FastLane(self) if fast else None
 
     # ---- input ----
 
@@ -52,9 +62,15 @@ class Analyzer:
             raise RuntimeError("the analyzer is closed")
         if chunk.dir not in (HOST, DEVICE):
             raise ValueError(f"chunk direction must be 'host' or 'device', got {chunk.dir!r}")
+        if self.lane is not None:
+            return self.lane.feed(chunk)
+        return self._feed(chunk)
+
+    def _feed(self, chunk: Chunk) -> list[Record]:
+        """The full path of ``feed`` (the fast lane's fallback)."""
         out: list[Record] = []
         if chunk.t is not None:
-            out += self.tick(chunk.t)
+            out += self._tick(chunk.t)
         framer = self._framers[chunk.dir]
         if chunk.error and chunk.data:
             self._errors[chunk.dir].append((framer.bytes_in, framer.bytes_in + len(chunk.data), chunk.error))
@@ -72,6 +88,11 @@ class Analyzer:
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
+        if self.lane is not None:
+            self.lane.full_path()
+        return self._tick(now)
+
+    def _tick(self, now: float) -> list[Record]:
         out: list[Record] = []
         framer = self._framers[DEVICE]
         if (self.device_idle_flush is not None and framer.pending and self._device_last is not None
@@ -88,8 +109,10 @@ class Analyzer:
         out: list[Record] = []
         if self._closed:
             return out
+        if self.lane is not None:
+            self.lane.full_path()
         if now is not None:
-            out += self.tick(now)
+            out += self._tick(now)
         for direction in (HOST, DEVICE):
             for event in self._framers[direction].flush():
                 out += self._event(direction, event)
@@ -102,15 +125,21 @@ class Analyzer:
     @property
     def waiting(self) -> bool:
         """Does anything the host sent (a command, an error, a discarded line) wait for an answer?"""
+        if self.lane is not None:
+            self.lane.settle()
         return self.conversation.waiting
 
     @property
     def expecting_answer(self) -> bool:
         """Does a well-formed command wait for its answer (see the engine)?"""
+        if self.lane is not None:
+            self.lane.settle()
         return self.conversation.expecting_answer
 
     def bytes_in(self, direction: str) -> int:
         """Bytes fed so far on one line."""
+        if self.lane is not None:
+            self.lane.settle()
         return self._framers[direction].bytes_in
 
     def summary(self) -> dict[str, object]:

@@ -1,0 +1,385 @@
+"""The analyzer's fast lane: a memo of clean exchanges, filled by the engine, never a second rulebook.
+
+Most traffic is the same few exchanges over and over: a host chunk that is exactly one well-formed
+command, then a device chunk that is exactly its well-formed answer, in time. The engine
+(``xac1_proto.conversation.Conversation``) judges a command and its answer from three things only: the
+bytes, its own state and what it knows of the device (``knowledge``). So when, from the *quiet* state
+(nothing waiting, no move, no unreset alarm, no partial line on either framer, no line error pending),
+the full path judged command bytes C and answer bytes A with no violation at all and the knowledge came
+out equal to what it went in as, the next (C, A) from the quiet state with the same knowledge gets the
+same verdicts again, but for the per-event numbers and times (``i``, ``t``, ``t_last``, ``reply_to``,
+``latency_s``). This module keeps those verdicts, as records, in a memo and replays them:
+
+- A host chunk that is a memoised C, from the quiet state and with the knowledge the memo was filled
+  with, gets its record at once (the full path would give exactly that one record: a tick in the quiet
+  state expires nothing). The chunk is *held*: neither the framers nor the engine have seen it yet.
+- If the very next call is the feed of a device chunk that is a memoised answer to C, with no line
+  error, in time (``t_host <= t_device <= t_host + window``, the engine's deadline, or both untimed),
+  its record comes from the memo and the bookkeeping the full path would have done is done: event
+  numbers, the engine's last time, the framers' byte counts, the device's last time, the tally.
+- Anything else (another chunk, a late or different answer, ``tick``, ``close``, a question such as
+  ``waiting``) first *replays* the held chunk through the full path, its record not given or counted
+  again, and then goes on as without the fast lane. Every call returns the records it returns without
+  the fast lane: holding changes when the engine sees a chunk, never what comes out or when.
+
+Validity: a memo belongs to one value of the knowledge; memos are kept by that value (a snapshot: the
+facts, and the points copied), so traffic that goes back and forth between a few values (0RS learns the
+OUT ports that 0WS then establishes) keeps its memos. Any full-path call may change the knowledge
+(``dirty``): the next host chunk takes a snapshot; when the value changed, an empty memo is current
+until an exchange is memoised, and then the kept memo of that value, if any, takes its place. An
+exchange fills the memo only when both its records are clean, the engine is quiet before and after it
+and the knowledge before equals the knowledge after; clean exchanges that change the knowledge many
+times in a row make the lane step aside for a while (``CHANGES``, ``BACKOFF``). Moves (0MP, 0MV) are
+never memoised: their answer window depends on the knowledge and they change it. The engine must be
+driven only through the analyzer (nothing here sees ``power_on`` or ``stop_input`` called on it
+directly).
+
+Not covered (they take the full path): ticks or other calls between a held command and its answer (the
+live sniffer ticks on every poll), chunks with a line error or split frames, a command timed and its
+answer not (or the reverse), times that are not finite or run backwards. Equivalence with the full path:
+tests/test_fastlane_equivalence.py.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from operator import attrgetter
+from typing import Any, Final, Protocol
+
+from xac1_proto import Framer, spec
+from xac1_proto.chunk import DEVICE, HOST, Chunk
+from xac1_proto.conversation import Conversation, Knowledge
+
+from .records import FrameRecord, Record, Tally
+
+# Bounds (memory stays flat whatever the traffic: about 2 KB a memoised command): memos kept, one per
+# value of the knowledge, the least recently used dropped first; memoised commands in all of them; answers
+# memoised for one command.
+MEMOS: Final = 128
+COMMANDS: Final = 4096
+ANSWERS: Final = 8
+# Traffic whose clean exchanges each change the knowledge (new point values written, one after another)
+# is never memoised: after CHANGES such exchanges with no hit or memoised exchange between, the next
+# BACKOFF chunks take the full path without the lane's own checks, then it looks again; each time in a
+# row it finds nothing, it steps aside twice as long (up to BACKOFF_MAX).
+CHANGES: Final = 8
+BACKOFF: Final = 64
+BACKOFF_MAX: Final = 4096
+_KNOWLEDGE_FIELDS: Final = tuple(f.name for f in dataclasses.fields(Knowledge))
+_FACTS: Final = attrgetter(*(n for n in _KNOWLEDGE_FIELDS if n != "points"))
+# the snapshot copies ``points``, the one mutable field; every other field is immutable (a new mutable
+# field must be copied too: this stops the import until it is)
+assert all(str(f.type).startswith("Fact[") or f.type in ("int", int) for f in dataclasses.fields(Knowledge)
+           if f.name != "points")
+_new: Final = object.__new__
+
+# ``_clone`` fills a record's __dict__ directly: a frozen dataclass's __init__ sets each of its 14 fields
+# with object.__setattr__, 4x slower (measured). That needs plain instance dicts and no __post_init__.
+assert "__slots__" not in FrameRecord.__dict__ and not hasattr(FrameRecord, "__post_init__")
+
+
+def _clone(template: FrameRecord, i: int, t: float | None, reply_to: int | None,
+           latency_s: float | None) -> FrameRecord:
+    """``dataclasses.replace(template, i=i, t=t, t_last=t, reply_to=reply_to, latency_s=latency_s)``."""
+    record: FrameRecord = _new(FrameRecord)
+    d = record.__dict__
+    d.update(template.__dict__)
+    d["i"] = i
+    d["t"] = d["t_last"] = t
+    d["reply_to"] = reply_to
+    d["latency_s"] = latency_s
+    return record
+
+
+def knowledge_snapshot(k: Knowledge) -> tuple[Any, ...]:
+    """The knowledge's value, frozen: every field but ``points`` (facts are immutable), then ``points``
+    copied (the one mutable field)."""
+    return _FACTS(k), dict(k.points)
+
+
+class _Entry:
+    """What the full path gave for a memoised command: its record (a template), the answer window it
+    was given, and the records of the clean answers seen to it, by the answer's bytes."""
+
+    __slots__ = ("host", "window", "answers")
+
+    def __init__(self, host: FrameRecord, window: float) -> None:
+        self.host = host
+        self.window = window
+        self.answers: dict[bytes, FrameRecord] = {}
+
+
+Held = tuple[Chunk, _Entry, int]  # a host chunk answered from the memo, not yet fed: (chunk, entry, its i)
+Observed = tuple[Chunk, FrameRecord, tuple[Any, ...]]  # a clean command the full path judged: (chunk,
+# its record, the knowledge before it); its answer may fill the memo
+
+
+class Analyzer(Protocol):
+    """What the fast lane reads and advances of ``sniffer.analyzer.Analyzer`` (named here, not imported:
+    the analyzer imports this module)."""
+
+    conversation: Conversation
+    tally: Tally
+    _framers: dict[str, Framer]
+    _errors: dict[str, list[tuple[int, int, str]]]
+    _device_since: float | None
+    _device_last: float | None
+
+    def _feed(self, chunk: Chunk) -> list[Record]: ...
+
+
+class _Uncounted(Tally):
+    """The tally of a replayed host chunk: its record was counted when it was given."""
+
+    def add(self, record: Record) -> None:
+        pass
+
+
+class FastLane:
+    """The memo of clean exchanges for one ``Analyzer`` (see the module docstring). ``hits``: exchanges
+    answered from the memo; ``replays``: held commands replayed through the full path.
+
+    It reads and advances the analyzer's and the engine's private state (it stands in for their full
+    path); every attribute it touches is one the full path touches for the same two chunks."""
+
+    def __init__(self, analyzer: Analyzer) -> None:
+        self.analyzer = analyzer
+        self.hits = 0
+        self.replays = 0
+        self._conversation = analyzer.conversation
+        self._host = analyzer._framers[HOST]
+        self._device = analyzer._framers[DEVICE]
+        self._errors = analyzer._errors
+        self._memo: dict[bytes, _Entry] = {}  # the memo of the knowledge ``_snap``
+        self._snap: tuple[Any, ...] | None = None
+        self._registered = False  # is ``_memo`` kept in ``_memos`` (as ``_key``; else it is empty)?
+        self._key: tuple[Any, ...] | None = None
+        # the memo current before the last change of the knowledge: (snapshot, memo, key), if kept
+        self._previous: tuple[Any, dict[bytes, _Entry], Any] | None = None
+        self._memos: dict[tuple[Any, ...], dict[bytes, _Entry]] = {}  # by the knowledge (hashable), LRU
+        self._commands = 0  # memoised commands in all memos
+        self._dirty = True  # the full path ran since ``_snap`` was taken: the knowledge may differ
+        self._held: Held | None = None
+        self._observed: Observed | None = None
+        self._changes = 0  # clean exchanges that changed the knowledge, none memoised or hit between
+        self._skip = 0  # chunks left to pass straight to the full path (``BACKOFF``)
+        self._backoff = BACKOFF  # the next time the lane steps aside, for this many chunks
+        self._uncounted = _Uncounted()
+
+    # ---- entry points (the analyzer's) ----
+
+    def feed(self, chunk: Chunk) -> list[Record]:
+        """``Analyzer.feed``, the checks of the chunk done: the records the full path would give."""
+        held = self._held
+        if held is not None:
+            self._held = None
+            out = self._answer(held, chunk)
+            if out is not None:
+                return out
+            self._replay(held)
+        a = self.analyzer
+        observed = self._observed
+        if observed is not None:
+            self._observed = None
+            out = a._feed(chunk)
+            self._learn(observed, chunk, out)
+            return out
+        if self._skip:
+            self._skip -= 1
+            self._dirty = True
+            return a._feed(chunk)
+        c = self._conversation
+        t = chunk.t
+        # the quiet state (framers' buffers read directly: ``pending`` is their length)
+        if (chunk.dir == HOST and chunk.error is None and not c._queue and c._motion is None
+                and not c._unreset_alarm and not self._host._buf and not self._device._buf
+                and a._device_since is None and not self._errors[HOST] and not self._errors[DEVICE]
+                and type(chunk.data) is bytes and (t is None or t - t == 0.0)):  # finite or no time
+            return self._command(chunk)
+        self._dirty = True
+        return a._feed(chunk)
+
+    def settle(self) -> None:
+        """Before any call but ``feed`` (tick, close, questions): the held chunk goes the full path."""
+        held = self._held
+        if held is not None:
+            self._held = None
+            self._replay(held)
+
+    def full_path(self) -> None:
+        """Before a ``tick`` or ``close``: settle, and no exchange is being observed across it."""
+        self.settle()
+        self._observed = None
+        self._dirty = True
+
+    # ---- the command ----
+
+    def _command(self, chunk: Chunk) -> list[Record]:
+        """A host chunk from the quiet state: its record from the memo (held), or the full path,
+        observed."""
+        a = self.analyzer
+        if self._dirty:
+            self._select(knowledge_snapshot(self._conversation.knowledge))
+        entry = self._memo.get(chunk.data)
+        if entry is not None:
+            i = self._conversation._next_i
+            record = _clone(entry.host, i, chunk.t, None, None)
+            a.tally.add_clean_frame(record)
+            self._held = (chunk, entry, i)
+            return [record]
+        before = self._snap
+        assert before is not None
+        out = a._feed(chunk)
+        self._dirty = True
+        self._observe(chunk, out, before)
+        return out
+
+    def _select(self, now: tuple[Any, ...]) -> None:
+        """The knowledge is ``now`` (a snapshot just taken): keep the current memo if it is that value's,
+        else start afresh (``_fresh``)."""
+        self._dirty = False
+        if now != self._snap:
+            self._fresh(now)
+
+    def _fresh(self, now: tuple[Any, ...]) -> None:
+        """The knowledge changed to ``now``. Back to the value before the last (0RS learns the OUT ports,
+        0WS establishes them again): its memo, if still kept. Else an empty memo, not yet looked up among
+        the kept ones: the look-up (a hash of every fact) waits for the first exchange to memoise, so
+        traffic whose every exchange changes the knowledge (new point values written) never pays for it."""
+        back = self._previous
+        self._previous = (self._snap, self._memo, self._key) if self._registered else None
+        self._dirty = False
+        if back is not None and back[0] == now and self._memos.get(back[2]) is back[1]:
+            memo, key = back[1], back[2]
+            self._memos[key] = self._memos.pop(key)  # the most recently used last
+            self._snap, self._memo, self._key, self._registered = now, memo, key, True
+            return
+        self._snap, self._memo, self._key, self._registered = now, {}, None, False
+
+    def _register(self) -> None:
+        """The current memo is about to be filled: the kept memo of the same knowledge, if there is one,
+        becomes the current one; the least recently used are dropped beyond ``MEMOS``."""
+        assert self._snap is not None
+        facts, points = self._snap
+        key = facts, frozenset(points.items())  # facts are frozen dataclasses: hashable
+        memos = self._memos
+        memo = memos.pop(key, None)
+        if memo is None:
+            memo = self._memo  # empty: nothing is memoised before registering
+            if len(memos) >= MEMOS:
+                self._drop_oldest()
+        memos[key] = memo  # the most recently used last
+        self._memo, self._key, self._registered = memo, key, True
+
+    def _drop_oldest(self) -> bool:
+        """Forget the least recently used memo, never the current one; False when there is none other."""
+        oldest = next(iter(self._memos), None)
+        if oldest is None or self._memos[oldest] is self._memo:
+            return False
+        self._commands -= len(self._memos.pop(oldest))
+        return True
+
+    def _observe(self, chunk: Chunk, out: list[Record], before: tuple[Any, ...]) -> None:
+        """Watch for the answer of a host chunk the full path judged clean (not a move)."""
+        if len(out) == 1:
+            record = out[0]
+            if (type(record) is FrameRecord and not record.violations and not record.line_errors
+                    and record.raw == chunk.data
+                    and record.header not in spec.MOVE_HEADERS and record.window_s is not None
+                    and not self._host._buf):
+                self._observed = (chunk, record, before)
+
+    def _replay(self, held: Held) -> None:
+        """The held chunk through the full path, as it would have gone; its record is not counted again
+        (it was given and counted when the chunk came). Its answer may still fill the memo."""
+        a = self.analyzer
+        tally = a.tally
+        a.tally = self._uncounted
+        try:
+            out = a._feed(held[0])
+        finally:
+            a.tally = tally
+        self.replays += 1
+        self._dirty = True
+        assert self._snap is not None
+        self._observe(held[0], out, self._snap)
+
+    # ---- the answer ----
+
+    def _answer(self, held: Held, chunk: Chunk) -> list[Record] | None:
+        """The device chunk right after a held command: its record from the memo when it is a memoised
+        answer in time, with the full path's bookkeeping done; else None (the caller replays)."""
+        if chunk.dir != DEVICE or chunk.error is not None or type(chunk.data) is not bytes:
+            return None
+        command, entry, i = held
+        template = entry.answers.get(chunk.data)
+        if template is None:
+            return None
+        t_host, t = command.t, chunk.t
+        if t_host is None:
+            if t is not None:
+                return None
+            latency = None
+        elif t is None or not t_host <= t <= t_host + entry.window:  # the engine's deadline, its sum
+            return None
+        else:
+            latency = t - t_host
+        record = _clone(template, i + 1, t, i, latency)
+        # what the full path would have done: the two events numbered, time passed to t_host then t
+        # (the engine's tick, twice each: idempotent), the answer no longer arriving, the framers' byte
+        # counts, the device's last time
+        c = self._conversation
+        c._next_i = i + 2
+        if t is not None and t_host is not None:
+            last = c._last_t
+            last = t_host if last is None else max(last, t_host)
+            c._last_t = max(last, t)
+        c._answer_since = None
+        self._host._base += len(command.data)
+        self._device._base += len(chunk.data)
+        self.analyzer._device_last = t
+        self.analyzer.tally.add_clean_frame(record)
+        self.hits += 1
+        self._changes, self._backoff = 0, BACKOFF
+        return [record]
+
+    def _learn(self, observed: Observed, chunk: Chunk, out: list[Record]) -> None:
+        """After the full path fed the chunk right after an observed command: memoise the exchange when it
+        is clean, leaves the engine quiet and the knowledge as it was."""
+        self._dirty = True
+        if len(out) != 1 or chunk.dir != DEVICE or chunk.error is not None or type(chunk.data) is not bytes:
+            return
+        command, host, before = observed
+        record = out[0]
+        t_host, t = command.t, chunk.t
+        if (t_host is None) != (t is None) or (t is not None and t_host is not None and not t_host <= t):
+            return
+        c = self._conversation
+        if not (type(record) is FrameRecord and not record.violations and not record.line_errors
+                and record.reply_to == host.i
+                and record.raw == chunk.data and not c._queue and c._motion is None
+                and not c._unreset_alarm and not self._device._buf and self.analyzer._device_since is None
+                and not self._errors[HOST] and not self._errors[DEVICE]):
+            return
+        after = knowledge_snapshot(c.knowledge)
+        if after != before:
+            self._fresh(after)
+            self._changes += 1
+            if self._changes >= CHANGES:
+                self._changes, self._skip = 0, self._backoff
+                self._backoff = min(2 * self._backoff, BACKOFF_MAX)
+            return
+        self._changes, self._backoff = 0, BACKOFF
+        self._dirty = False
+        if not self._registered:
+            self._register()
+        assert host.window_s is not None
+        entry = self._memo.get(command.data)
+        if entry is None:
+            while self._commands >= COMMANDS:
+                if not self._drop_oldest():
+                    return
+            entry = self._memo[command.data] = _Entry(host, host.window_s)
+            self._commands += 1
+        if len(entry.answers) < ANSWERS:
+            entry.answers[chunk.data] = record
