@@ -225,20 +225,8 @@ class Tally:
             for code, side in zip(record.violations, sides_of(record), strict=True):
                 self.by_side[side][code] += 1
         if isinstance(record, FrameRecord):
-            self.frames[record.dir] += 1
-            self.bytes[record.dir] += len(record.raw)
-            header = record.header or "?"
             self.line_errors += bool(record.line_errors)
-            if record.dir == "host":
-                self.commands[header] += 1
-                self._headers[record.i] = header
-                if len(self._headers) > _MAX_WAITING:  # commands never answered: forget the oldest
-                    del self._headers[next(iter(self._headers))]
-            else:
-                self.answers[header] += 1
-                command = self._headers.pop(record.reply_to, "?") if record.reply_to is not None else "?"
-                if record.reply_to is not None and record.latency_s is not None:  # a command is answered once
-                    self.latencies.setdefault(command, LatencyStats()).add(record.latency_s)
+            self.add_clean_frame(record)
         elif isinstance(record, JunkRecord):
             self.junk += 1
             self.bytes[record.dir] += len(record.raw)
@@ -246,7 +234,7 @@ class Tally:
 
     def add_clean_frame(self, record: FrameRecord) -> None:
         """``add`` for a frame record with no violation and no line error (the analyzer's fast lane
-        gives only those): the same counts, without the checks the others need."""
+        gives only those; ``add`` counts every frame record's frame, header and latency here)."""
         direction = record.dir
         self.frames[direction] += 1
         self.bytes[direction] += len(record.raw)
