@@ -361,9 +361,8 @@ def corpus_cases() -> list[Path]:
     return sorted(CORPUS.glob("*.txt"))
 
 
-@pytest.mark.parametrize("path", corpus_cases(), ids=lambda p: p.stem)
-def test_corpus_of_hard_cases(path):
-    """Derandomized hard cases, one per file: ``<dir> <gap s> <hex>`` lines, fed whole and byte by byte."""
+def read_corpus_case(path: Path) -> tuple[list[tuple[str, bytes]], list[float]]:
+    """A corpus file's ``<H|D> <gap s> <hex>`` lines (``#`` comments) as (direction, bytes) and gaps."""
     items, dts = [], []
     for line in path.read_text().splitlines():
         if line.strip() and not line.startswith("#"):
@@ -371,6 +370,13 @@ def test_corpus_of_hard_cases(path):
             items.append((HOST if who == "H" else DEVICE, bytes.fromhex(data)))
             dts.append(float(gap))
     assert items, f"{path}: no lines"
+    return items, dts
+
+
+@pytest.mark.parametrize("path", corpus_cases(), ids=lambda p: p.stem)
+def test_corpus_of_hard_cases(path):
+    """Derandomized hard cases, one per file: ``<dir> <gap s> <hex>`` lines, fed whole and byte by byte."""
+    items, dts = read_corpus_case(path)
     for timed in (True, False):
         for sizes in ([64], [1], [2, 5]):
             assert_library_equal(chunks_of(items, dts, sizes, timed))

@@ -30,6 +30,7 @@ from test_decode_equivalence import (
     events,
     gaps,
     line_error_at,
+    read_corpus_case,
 )
 
 from sniffer import fastlane
@@ -289,12 +290,7 @@ def test_fast_lane_on_the_decode_equivalence_conversations(items, dts, sizes, ti
 
 @pytest.mark.parametrize("path", corpus_cases(), ids=lambda p: p.stem)
 def test_fast_lane_on_the_corpus(path):
-    items, dts = [], []
-    for line in path.read_text().splitlines():
-        if line.strip() and not line.startswith("#"):
-            who, gap, data = line.split(maxsplit=2)
-            items.append((HOST if who == "H" else DEVICE, bytes.fromhex(data)))
-            dts.append(float(gap))
+    items, dts = read_corpus_case(path)
     for timed in (True, False):
         ops: list[Op] = [("feed", c) for c in chunks_of(items * 3, dts * 3, [64], timed)]
         assert_same(ops)
