@@ -24,6 +24,10 @@ from typing import TYPE_CHECKING, Any, Final
 from xac1_proto import spec
 
 if TYPE_CHECKING:
+    from collections.abc import Iterator
+
+    from xac1_proto.chunk import Chunk
+
     from .io.base import Report, Source
     from .io.registry import Capture
 
@@ -320,13 +324,18 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
 
     try:
         with _progress(capture) as progress:
-            for chunk in capture:
-                report.give_up_after = None  # data came: the format reads
-                records = analyzer.feed(chunk)
-                if annotate is not None:
+            if annotate is not None:  # each chunk written with its records
+                for chunk in capture:
+                    report.give_up_after = None  # data came: the format reads
+                    records = analyzer.feed(chunk)
                     annotate.write(chunk, records)
-                emit(records)
-                progress.update()
+                    emit(records)
+                    progress.update()
+            else:  # in bulk; clean frame records only where something shows or counts them
+                clean = show is not None or html_report is not None or tally is not None
+                for records in analyzer.feed_all(_data_came(capture, report), clean=clean):
+                    emit(records)
+                    progress.update()
     except WrongFormat:
         _print_problems(report, WRONG_FORMAT_SHOWN)
         looks = f" ({report.looks_like})" if report.looks_like else ""
@@ -365,6 +374,15 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
     if report.total_problems or report.unread_bytes or report.unread_lines:
         print(f"xac1 decode: {capture.format}: {report.summary()}; the rest was decoded", file=sys.stderr)
     return 1 if violations or report.total_problems else 0
+
+
+def _data_came(capture: Capture, report: Report) -> Iterator[Chunk]:
+    """The capture's chunks; from the first on, no longer a wrong format however many problems follow."""
+    chunks = iter(capture)
+    for first in chunks:
+        report.give_up_after = None
+        yield first
+        yield from chunks
 
 
 def _print_problems(report: Report, at_most: int | None = None) -> None:

@@ -43,6 +43,7 @@ tests/test_fastlane_equivalence.py.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
 from operator import attrgetter
 from typing import Any, Final, Protocol
 
@@ -50,7 +51,9 @@ from xac1_proto import Framer, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.conversation import Conversation, Knowledge
 
-from .records import FrameRecord, Record, Tally
+from .records import _MAX_LATENCY_S as MAX_LATENCY_S
+from .records import _MAX_WAITING as MAX_WAITING
+from .records import FrameRecord, LatencyStats, Record, Tally
 
 # Bounds (memory stays flat whatever the traffic: about 2 KB a memoised command): memos kept, one per
 # value of the knowledge, the least recently used dropped first; memoised commands in all of them; answers
@@ -66,7 +69,9 @@ CHANGES: Final = 8
 BACKOFF: Final = 64
 BACKOFF_MAX: Final = 4096
 _KNOWLEDGE_FIELDS: Final = tuple(f.name for f in dataclasses.fields(Knowledge))
-_FACTS: Final = attrgetter(*(n for n in _KNOWLEDGE_FIELDS if n != "points"))
+_FACT_NAMES: Final = tuple(n for n in _KNOWLEDGE_FIELDS if n != "points")
+_FACTS: Final = attrgetter(*_FACT_NAMES)
+_MISSING: Final = object()
 # the snapshot copies ``points``, the one mutable field; every other field is immutable (a new mutable
 # field must be copied too: this stops the import until it is)
 assert all(str(f.type).startswith("Fact[") or f.type in ("int", int) for f in dataclasses.fields(Knowledge)
@@ -97,16 +102,62 @@ def knowledge_snapshot(k: Knowledge) -> tuple[Any, ...]:
     return _FACTS(k), dict(k.points)
 
 
+def _key(snapshot: tuple[Any, ...]) -> tuple[Any, ...]:
+    """A knowledge snapshot as a dict key (facts are frozen dataclasses: hashable)."""
+    facts, points = snapshot
+    return facts, frozenset(points.items())
+
+
+class _Answer:
+    """A memoised clean answer: its record (a template) and, during a stretch (``FastLane.stretch``), the
+    exchanges it completed that the tally has not counted yet (``n``; ``us``: their latencies, whole
+    microseconds, as ``LatencyStats.add`` counts them)."""
+
+    __slots__ = ("record", "change", "n", "us")
+
+    def __init__(self, record: FrameRecord, change: _Change | None = None) -> None:
+        self.record = record
+        self.change = change
+        self.n = 0
+        self.us: list[int] = []
+
+
+class _Change:
+    """What a memoised exchange does to the knowledge (it came out as ``after``, went in as the knowledge
+    of the memo holding it): the facts and points that differ, to set; the points to drop; ``after``'s
+    value and key, to select its memo."""
+
+    __slots__ = ("facts", "points", "dropped", "after", "key")
+
+    def __init__(self, before: tuple[Any, ...], after: tuple[Any, ...]) -> None:
+        (facts0, points0), (facts1, points1) = before, after
+        self.facts = tuple((name, v) for name, v0, v in zip(_FACT_NAMES, facts0, facts1, strict=True)
+                           if v != v0 or type(v) is not type(v0))
+        self.points = {n: fact for n, fact in points1.items() if points0.get(n, _MISSING) != fact}
+        self.dropped = tuple(n for n in points0 if n not in points1)
+        self.after = after
+        self.key = _key(after)
+
+    def apply(self, k: Knowledge) -> None:
+        """Make ``k`` (the memo's knowledge) what the exchange left."""
+        for name, value in self.facts:
+            setattr(k, name, value)
+        points = k.points
+        points.update(self.points)
+        for n in self.dropped:
+            del points[n]
+
+
 class _Entry:
     """What the full path gave for a memoised command: its record (a template), the answer window it
-    was given, and the records of the clean answers seen to it, by the answer's bytes."""
+    was given, and the clean answers seen to it, by the answer's bytes."""
 
     __slots__ = ("host", "window", "answers")
 
     def __init__(self, host: FrameRecord, window: float) -> None:
         self.host = host
         self.window = window
-        self.answers: dict[bytes, FrameRecord] = {}
+        self.answers: dict[bytes, _Answer] = {}
 
 
 Held = tuple[Chunk, _Entry, int]  # a host chunk answered from the memo, not yet fed: (chunk, entry, its i)
@@ -212,6 +263,132 @@ class FastLane:
         self._observed = None
         self._dirty = True
 
+    def can_stretch(self) -> bool:
+        """Right after a hit (the state quiet, the memo current): may ``stretch`` go on inline?"""
+        return (self._held is None and self._observed is None and not self._skip and not self._dirty
+                and len(self.analyzer.tally._headers) < MAX_WAITING)
+
+    def stretch(self, chunks: Iterator[Chunk], out: list[Record], clean: bool, limit: int) -> int:
+        """After a hit (``can_stretch``): take the following chunks while they are exchanges that hit too,
+        up to ``limit`` chunks, giving each its two records (into ``out``; ``clean`` False: not made, only
+        counted: they are clean frame records) and doing the bookkeeping ``feed`` would do for each, once
+        at the end. The first chunks that are not such an exchange go to ``feed``. Returns the chunks
+        taken.
+
+        An exchange here is what ``feed`` followed by ``feed`` would answer from the memo: after a hit the
+        state is quiet and the knowledge unchanged, so each hit leaves the next exchange the same checks:
+        a host chunk (no line error, bytes, a finite time or none) that is a memoised command, then a
+        device chunk (no line error, bytes) that is a memoised answer to it, in time."""
+        a = self.analyzer
+        c = self._conversation
+        memo = self._memo
+        i = c._next_i
+        last = c._last_t
+        device_last = a._device_last
+        touched: list[tuple[FrameRecord, _Answer]] = []
+        taken = pairs = 0
+        rest: tuple[Chunk, ...] = ()  # chunks taken but not an exchange from the memo: to ``feed``
+        while taken < limit:
+            h = next(chunks, None)
+            if h is None:
+                break
+            taken += 1
+            t = h.t
+            if (h.dir != HOST or h.error is not None or type(h.data) is not bytes
+                    or (t is not None and t - t != 0.0)):
+                rest = (h,)
+                break
+            entry = memo.get(h.data)
+            if entry is None:
+                rest = (h,)
+                break
+            d = next(chunks, None)
+            if d is None:
+                rest = (h,)
+                break
+            taken += 1
+            if d.dir != DEVICE or d.error is not None or type(d.data) is not bytes:
+                rest = (h, d)
+                break
+            answer = entry.answers.get(d.data)
+            if answer is None:
+                rest = (h, d)
+                break
+            td = d.t
+            if t is None:
+                if td is not None:
+                    rest = (h, d)
+                    break
+                latency = None
+            elif td is None or not t <= td <= t + entry.window:  # the engine's deadline, its sum
+                rest = (h, d)
+                break
+            else:
+                latency = td - t
+                if last is None or t > last:  # max(last, t), then max(last, td): as ``_answer``
+                    last = t
+                if td > last:
+                    last = td
+                if latency <= MAX_LATENCY_S:  # as LatencyStats.add: a latency it counts
+                    answer.us.append(round(latency * 1e6))
+            if clean:
+                out.append(_clone(entry.host, i, t, None, None))
+                out.append(_clone(answer.record, i + 1, td, i, latency))
+            if not answer.n:
+                touched.append((entry.host, answer))
+            answer.n += 1
+            i += 2
+            device_last = td
+            pairs += 1
+            change = answer.change
+            if change is not None:
+                change.apply(c.knowledge)
+                self._switch(change)
+                memo = self._memo
+        if pairs:
+            c._next_i = i
+            c._last_t = last
+            c._answer_since = None
+            a._device_last = device_last
+            self.hits += pairs
+            self._changes, self._backoff = 0, BACKOFF
+            self._count(touched, pairs)
+        for chunk in rest:
+            out += self.feed(chunk)
+        return taken
+
+    def _count(self, touched: list[tuple[FrameRecord, _Answer]], pairs: int) -> None:
+        """The tally and the framers' byte counts of a stretch's ``pairs`` exchanges, as ``feed`` counts
+        them one by one (``Tally.add_clean_frame`` of the host record, then of its answer)."""
+        tally = self.analyzer.tally
+        commands, answers, latencies = tally.commands, tally.answers, tally.latencies
+        host_bytes = device_bytes = 0
+        for host, answer in touched:
+            n, record = answer.n, answer.record
+            answer.n = 0
+            host_bytes += n * len(host.raw)
+            device_bytes += n * len(record.raw)
+            command = host.header or "?"
+            commands[command] += n
+            answers[record.header or "?"] += n
+            us = answer.us
+            if us:
+                answer.us = []
+                stats = latencies.get(command)
+                if stats is None:
+                    stats = latencies[command] = LatencyStats()
+                stats.n += len(us)
+                histogram = stats._us
+                get = histogram.get
+                for key in us:
+                    histogram[key] = get(key, 0) + 1
+        tally.frames[HOST] += pairs
+        tally.frames[DEVICE] += pairs
+        tally.bytes[HOST] += host_bytes
+        tally.bytes[DEVICE] += device_bytes
+        self._host._base += host_bytes
+        self._device._base += device_bytes
+
     # ---- the command ----
 
     def _command(self, chunk: Chunk) -> list[Record]:
@@ -260,8 +437,7 @@ class FastLane:
         """The current memo is about to be filled: the kept memo of the same knowledge, if there is one,
         becomes the current one; the least recently used are dropped beyond ``MEMOS``."""
         assert self._snap is not None
-        facts, points = self._snap
-        key = facts, frozenset(points.items())  # facts are frozen dataclasses: hashable
+        key = _key(self._snap)
         memos = self._memos
         memo = memos.pop(key, None)
         if memo is None:
@@ -312,9 +488,10 @@ class FastLane:
         if chunk.dir != DEVICE or chunk.error is not None or type(chunk.data) is not bytes:
             return None
         command, entry, i = held
-        template = entry.answers.get(chunk.data)
-        if template is None:
+        answer = entry.answers.get(chunk.data)
+        if answer is None:
             return None
+        template = answer.record
         t_host, t = command.t, chunk.t
         if t_host is None:
             if t is not None:
@@ -341,6 +518,10 @@ class FastLane:
         self.analyzer.tally.add_clean_frame(record)
         self.hits += 1
         self._changes, self._backoff = 0, BACKOFF
+        change = answer.change
+        if change is not None:
+            change.apply(c.knowledge)
+            self._switch(change)
         return [record]
 
     def _learn(self, observed: Observed, chunk: Chunk, out: list[Record]) -> None:
@@ -362,24 +543,47 @@ class FastLane:
                 and not self._errors[HOST] and not self._errors[DEVICE]):
             return
         after = knowledge_snapshot(c.knowledge)
+        change = None
         if after != before:
-            self._fresh(after)
             self._changes += 1
             if self._changes >= CHANGES:
                 self._changes, self._skip = 0, self._backoff
                 self._backoff = min(2 * self._backoff, BACKOFF_MAX)
-            return
-        self._changes, self._backoff = 0, BACKOFF
+                self._fresh(after)
+                return
+            change = _Change(before, after)
+        else:
+            self._changes, self._backoff = 0, BACKOFF
         self._dirty = False
+        self._store(command.data, host, chunk.data, record, change)
+        if change is not None:
+            self._switch(change)
+
+    def _store(self, command: bytes, host: FrameRecord, data: bytes, record: FrameRecord,
+               change: _Change | None) -> None:
+        """Memoise an exchange in the current memo (the knowledge it went in with), within the bounds."""
         if not self._registered:
             self._register()
         assert host.window_s is not None
-        entry = self._memo.get(command.data)
+        entry = self._memo.get(command)
         if entry is None:
             while self._commands >= COMMANDS:
                 if not self._drop_oldest():
                     return
-            entry = self._memo[command.data] = _Entry(host, host.window_s)
+            entry = self._memo[command] = _Entry(host, host.window_s)
             self._commands += 1
         if len(entry.answers) < ANSWERS:
-            entry.answers[chunk.data] = record
+            entry.answers[data] = _Answer(record, change)
+
+    def _switch(self, change: _Change) -> None:
+        """The knowledge became ``change.after`` (an exchange changed it): its memo is current, the kept
+        one if there is one (most recently used now), else an empty one (``_fresh``)."""
+        memos = self._memos
+        memo = memos.pop(change.key, None)
+        if memo is None:
+            self._fresh(change.after)
+            return
+        memos[change.key] = memo
+        self._previous = (self._snap, self._memo, self._key) if self._registered else None
+        self._snap, self._memo, self._key, self._registered = change.after, memo, change.key, True
+        self._dirty = False
