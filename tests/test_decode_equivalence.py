@@ -163,10 +163,12 @@ def _reference_record_fields(self: FrameRecord) -> dict[str, object] | None:
 
 
 def _reference_text_write(self: TextView, record: Record) -> None:
-    """The text view as it was: each line built as rich markup and printed by the console. Two display
+    """The text view as it was: each line built as rich markup and printed by the console. Three display
     fixes of the new code are applied here too, so the rest can be compared exactly: no emoji codes
-    (``:smile:`` in the bytes was shown as an emoji), and the raw column padded by the characters shown
-    (it was padded with markup escapes counted)."""
+    (``:smile:`` in the bytes was shown as an emoji), the raw column padded by the characters shown
+    (it was padded with markup escapes counted), and a raw column of 22 characters or more that ends in
+    ``\\`` (a backslash byte) keeps both characters (markup halved the backslashes before the closing
+    tag)."""
     errors = getattr(record, "line_errors", ())
     for markup in [_reference_line(record), *_reference_violation_lines(record),
                    *(f"      [magenta]! line error: {escape(e)}[/]" for e in errors)]:
@@ -182,6 +184,7 @@ def _reference_line(record: Record) -> str:
     arrow = "→" if record.dir == "host" else "←"
     colour = "cyan" if record.dir == "host" else "green"
     raw = escape(f"{_reference_show_raw(record.raw):<22}")
+    raw += "\\" * (len(raw) - len(raw.rstrip("\\")))  # fix 3: see _reference_text_write
     head = f"{when} #{record.i:<4} [{colour}]{record.dir:<6} {arrow} {raw}[/]"
     if isinstance(record, JunkRecord):
         return f"{head} [red]junk ({record.reason})[/]"
@@ -346,6 +349,7 @@ def assert_library_equal(chunks: list[Chunk], close_at: float | None = None) -> 
 @given(events, gaps, cuts, st.booleans(), line_error_at)
 @example([(HOST, b"0RP3\r\n"), (DEVICE, b"0RP39302012345\r\n")], [0.0] * 40, [1], True, set())
 @example([(HOST, b"0RP30RP3\r\n"), (DEVICE, b"0RV1"), (DEVICE, b"00\r\n")], [1.0] * 40, [2, 3], True, {1})
+@example([(HOST, b"\x00" * 5), (HOST, b"\\")], [0.0] * 40, [64], False, set())  # raw ending in a backslash
 def test_library_path_gives_the_references_records_and_summary(items, dts, sizes, timed, flagged):
     assert_library_equal(chunks_of(items, dts, sizes, timed, flagged))
 
