@@ -6,7 +6,7 @@ peak RSS of that child alone, from ``peak_rss.py``):
 - ``xac1 decode FILE --format summary``, ``--format jsonl`` and the text view (to /dev/null);
 - ``tshark -r FILE.pcapng -X lua_script:<dissector> -d rtacser.data,<proto> -T fields -e <field>``
   with ``minimal_dissector.lua`` (the issue's peer), or ``--dissector PATH PROTO FIELD``;
-and the library path in this process (``sniffer.analyzer.Analyzer.feed_all``, records made: the path the
+and the library path in this process (``sniffer.analyzer.Analyzer.feed_many``, records made: the path the
 live sniffer and decode share), with the reader and from chunks already read. Prints frames/s, MB/s,
 peak RSS and each ratio to tshark (the socat log's rows too: it holds the same frames as the pcapng).
 
@@ -32,6 +32,7 @@ sys.path.insert(0, str(HERE))
 import traffic  # noqa: E402
 
 if TYPE_CHECKING:
+    from sniffer.records import Record
     from xac1_proto.chunk import Chunk
 from peak_rss import run_measuring_peak_rss  # noqa: E402
 
@@ -52,15 +53,17 @@ def run(cmd: list[str]) -> tuple[float, float]:
 
 def library_path(path: Path, fmt: str) -> tuple[float, float]:
     """Seconds of the library path in this process, records made (and dropped), best of three:
-    (the reader and ``Analyzer.feed_all``, the chunks already read and ``Analyzer.feed_all``)."""
+    (the reader and ``Analyzer.feed_many``, the chunks already read and ``Analyzer.feed_many``)."""
     from sniffer.analyzer import Analyzer
     from sniffer.io.registry import Capture
 
     def analyze(chunks: Iterable[Chunk]) -> float:
         t0 = time.perf_counter()
         analyzer = Analyzer()
-        for records in analyzer.feed_all(chunks):
-            del records
+        it = iter(chunks)
+        records: list[Record] = []
+        while analyzer.feed_many(it, records):
+            records = []
         analyzer.close()
         return time.perf_counter() - t0
 

@@ -21,7 +21,7 @@ come back under the same knowledge, bookkeeping included; every call returns wha
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from typing import Final
 
 from xac1_proto import FrameBytes, Framer, Junk, motion, spec
@@ -33,7 +33,7 @@ from .records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
-FEED_BATCH: Final = 1024  # chunks whose records ``feed_all`` gives in one list
+FEED_BATCH: Final = 1024  # chunks ``feed_many`` takes at most (about) in one call
 
 
 class Analyzer:
@@ -68,37 +68,32 @@ class Analyzer:
             return self.lane.feed(chunk)
         return self._feed(chunk)
 
-    def feed_all(self, chunks: Iterable[Chunk], clean: bool = True,
-                 batch: int = FEED_BATCH) -> Iterator[list[Record]]:
-        """``feed`` for each chunk in order (the reader's iterator is pulled as the records are wanted):
-        the same records, in the same order, a list about every ``batch`` chunks (empty when they gave
-        none: a caller can show progress), the last at the end. ``clean``
-        False: clean frame records that the fast lane answers in bulk are counted but not made (an
-        output that shows only the summary needs none); every other record still comes.
+    def feed_many(self, chunks: Iterator[Chunk], out: list[Record], clean: bool = True,
+                  limit: int = FEED_BATCH) -> int:
+        """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them (one more to end an exchange):
+        their records, the same and in the same order as ``feed`` one chunk at a time, appended to ``out``
+        as they are made (an exception, Ctrl-C included, loses none given so far). Returns the chunks
+        taken: 0 at the end.
+        ``clean`` False: clean frame records that the fast lane answers in bulk are counted, not made (an
+        output of only the summary needs none); every other record still comes.
 
         Faster than ``feed`` one chunk at a time: after an exchange answered from the memo, the next ones
         are taken in one loop (``FastLane.stretch``), their bookkeeping done once."""
-        it = iter(chunks)
         lane = self.lane
         feed = self.feed
-        out: list[Record] = []
         taken = 0
-        for chunk in it:
+        for chunk in chunks:
+            taken += 1
             if lane is None:
                 out += feed(chunk)
-                taken += 1
             else:
                 hits = lane.hits
                 out += feed(chunk)
-                taken += 1
-                if lane.hits != hits and lane.can_stretch():
-                    taken += lane.stretch(it, out, clean, max(2, batch - taken))
-            if taken >= batch:
-                yield out
-                out = []
-                taken = 0
-        if out or taken:
-            yield out
+                if lane.hits != hits and taken < limit and lane.can_stretch():
+                    taken += lane.stretch(chunks, out, clean, limit - taken)
+            if taken >= limit:
+                break
+        return taken
 
     def _feed(self, chunk: Chunk) -> list[Record]:
         """The full path of ``feed`` (the fast lane's fallback)."""

@@ -333,9 +333,16 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
                     progress.update()
             else:  # in bulk; clean frame records only where something shows or counts them
                 clean = show is not None or html_report is not None or tally is not None
-                for records in analyzer.feed_all(_data_came(capture, report), clean=clean):
-                    emit(records)
-                    progress.update()
+                chunks = _data_came(capture, report)
+                pending: list[Any] = []
+                try:
+                    while analyzer.feed_many(chunks, pending, clean):
+                        emit(pending)
+                        pending = []
+                        progress.update()
+                except BaseException:  # Ctrl-C too: the records of every chunk taken are shown
+                    emit(pending)
+                    raise
     except WrongFormat:
         _print_problems(report, WRONG_FORMAT_SHOWN)
         looks = f" ({report.looks_like})" if report.looks_like else ""

@@ -287,74 +287,72 @@ class FastLane:
         device_last = a._device_last
         touched: list[tuple[FrameRecord, _Answer]] = []
         taken = pairs = 0
-        rest: tuple[Chunk, ...] = ()  # chunks taken but not an exchange from the memo: to ``feed``
-        while taken < limit:
-            h = next(chunks, None)
-            if h is None:
-                break
-            taken += 1
-            t = h.t
-            if (h.dir != HOST or h.error is not None or type(h.data) is not bytes
-                    or (t is not None and t - t != 0.0)):
-                rest = (h,)
-                break
-            entry = memo.get(h.data)
-            if entry is None:
-                rest = (h,)
-                break
-            d = next(chunks, None)
-            if d is None:
-                rest = (h,)
-                break
-            taken += 1
-            if d.dir != DEVICE or d.error is not None or type(d.data) is not bytes:
-                rest = (h, d)
-                break
-            answer = entry.answers.get(d.data)
-            if answer is None:
-                rest = (h, d)
-                break
-            td = d.t
-            if t is None:
-                if td is not None:
-                    rest = (h, d)
+        rest: tuple[Chunk, ...] = ()  # chunks taken but not (yet) an exchange from the memo: to ``feed``
+        try:
+            while taken < limit:
+                h = next(chunks, None)
+                if h is None:
                     break
-                latency = None
-            elif td is None or not t <= td <= t + entry.window:  # the engine's deadline, its sum
+                taken += 1
+                rest = (h,)
+                t = h.t
+                if (h.dir != HOST or h.error is not None or type(h.data) is not bytes
+                        or (t is not None and t - t != 0.0)):
+                    break
+                entry = memo.get(h.data)
+                if entry is None:
+                    break
+                d = next(chunks, None)
+                if d is None:
+                    break
+                taken += 1
                 rest = (h, d)
-                break
-            else:
-                latency = td - t
-                if last is None or t > last:  # max(last, t), then max(last, td): as ``_answer``
-                    last = t
-                if td > last:
-                    last = td
-                if latency <= MAX_LATENCY_S:  # as LatencyStats.add: a latency it counts
-                    answer.us.append(round(latency * 1e6))
-            if clean:
-                out.append(_clone(entry.host, i, t, None, None))
-                out.append(_clone(answer.record, i + 1, td, i, latency))
-            if not answer.n:
-                touched.append((entry.host, answer))
-            answer.n += 1
-            i += 2
-            device_last = td
-            pairs += 1
-            change = answer.change
-            if change is not None:
-                change.apply(c.knowledge)
-                self._switch(change)
-                memo = self._memo
-        if pairs:
-            c._next_i = i
-            c._last_t = last
-            c._answer_since = None
-            a._device_last = device_last
-            self.hits += pairs
-            self._changes, self._backoff = 0, BACKOFF
-            self._count(touched, pairs)
-        for chunk in rest:
-            out += self.feed(chunk)
+                if d.dir != DEVICE or d.error is not None or type(d.data) is not bytes:
+                    break
+                answer = entry.answers.get(d.data)
+                if answer is None:
+                    break
+                td = d.t
+                if t is None:
+                    if td is not None:
+                        break
+                    latency = None
+                elif td is None or not t <= td <= t + entry.window:  # the engine's deadline, its sum
+                    break
+                else:
+                    latency = td - t
+                    if last is None or t > last:  # max(last, t), then max(last, td): as ``_answer``
+                        last = t
+                    if td > last:
+                        last = td
+                    if latency <= MAX_LATENCY_S:  # as LatencyStats.add: a latency it counts
+                        answer.us.append(round(latency * 1e6))
+                rest = ()
+                if clean:
+                    out.append(_clone(entry.host, i, t, None, None))
+                    out.append(_clone(answer.record, i + 1, td, i, latency))
+                if not answer.n:
+                    touched.append((entry.host, answer))
+                answer.n += 1
+                i += 2
+                device_last = td
+                pairs += 1
+                change = answer.change
+                if change is not None:
+                    change.apply(c.knowledge)
+                    self._switch(change)
+                    memo = self._memo
+        finally:  # the bookkeeping of the exchanges taken, whatever ends the loop
+            if pairs:
+                c._next_i = i
+                c._last_t = last
+                c._answer_since = None
+                a._device_last = device_last
+                self.hits += pairs
+                self._changes, self._backoff = 0, BACKOFF
+                self._count(touched, pairs)
+            for chunk in rest:  # not an exchange from the memo (or the reader failed after it)
+                out += self.feed(chunk)
         return taken
 
     def _count(self, touched: list[tuple[FrameRecord, _Answer]], pairs: int) -> None:

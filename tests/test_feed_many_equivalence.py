@@ -1,4 +1,4 @@
-"""``Analyzer.feed_all`` (the fast lane's stretches: exchanges answered from the memo taken in one loop,
+"""``Analyzer.feed_many`` (the fast lane's stretches: exchanges answered from the memo taken in one loop,
 their bookkeeping done once) changes nothing: fed the same chunks, it gives the records that ``feed``
 gives one chunk at a time on the full path (``Analyzer(fast=False)``), in order, field by field and as
 JSON lines, and leaves the same state and summary. With ``clean=False`` it may leave out clean frame
@@ -6,15 +6,17 @@ records only: every other record still comes, in order, and the summary is the s
 
 The conversations are those of tests/test_fastlane_equivalence.py (repeated clean exchanges with every
 kind of anomaly, ticks and questions between the runs of chunks), cut into runs of chunks each given to
-one ``feed_all`` with batch sizes from 1 up; exchanges that change the knowledge (``0RS`` learns the OUT
+one ``feed_many`` with batch sizes from 1 up; exchanges that change the knowledge (``0RS`` learns the OUT
 ports that ``0WS`` then establishes) are memoised as transitions and replayed by the stretches too.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from typing import Any
 
+import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from test_decode_equivalence import (
@@ -66,15 +68,18 @@ def _groups(ops: list[Op]) -> list[tuple[str, Any]]:
 def _run(ops: list[Op], fast: bool, close_at: float | None, options: dict[str, Any], clean: bool,
          batch: int) -> tuple[list[Any], Analyzer]:
     """Each group's result and the state after it; the fast analyzer takes each run of chunks through one
-    ``feed_all``, the reference feeds them one at a time on the full path."""
+    ``feed_many``, the reference feeds them one at a time on the full path."""
     analyzer = Analyzer(fast=fast, **options)
     out: list[Any] = []
     for what, arg in _groups(ops):
         if what == "chunks":
             if fast:
                 got: list[Record] = []
-                for records in analyzer.feed_all(arg, clean=clean, batch=batch):
-                    got += records
+                chunks = iter(arg)
+                taken = []
+                while n := analyzer.feed_many(chunks, got, clean, batch):
+                    taken.append(n)
+                assert sum(taken) == len(arg) and max(taken) <= batch + 1  # about ``batch`` a call
             else:
                 got = [r for chunk in arg for r in analyzer.feed(chunk)]
             out.append(got)
@@ -125,7 +130,8 @@ def assert_same(ops: list[Op], close_at: float | None = None, options: dict[str,
 @given(steps, st.booleans(), st.sampled_from([None, 0.0, 0.5, 1.0, 5.0]), st.sampled_from(OPTIONS),
        st.sampled_from(BOUNDS), st.booleans(), st.sampled_from(BATCHES))
 @example([(("clean", 3), 0.0, 0.002, 0), (("clean", 4), 0.0, 0.002, 0)] * 6, True, None, {}, {}, True, 1024)
-def test_feed_all_gives_the_full_paths_records(items, timed, close_after, options, lane_bounds, clean, batch):
+def test_feed_many_gives_the_full_paths_records(items, timed, close_after, options, lane_bounds, clean,
+                                                batch):
     ops = ops_of(items, timed)
     close_at = None if close_after is None else end_of(ops) + close_after
     with bounds(lane_bounds):
@@ -135,7 +141,7 @@ def test_feed_all_gives_the_full_paths_records(items, timed, close_after, option
 @settings(max_examples=800, deadline=None)
 @given(runs, st.booleans(), st.sampled_from([None, 0.0, 1.0]), st.sampled_from(OPTIONS),
        st.sampled_from(BOUNDS), st.booleans(), st.sampled_from(BATCHES))
-def test_feed_all_on_runs_of_repeated_exchanges(items, timed, close_after, options, lane_bounds, clean,
+def test_feed_many_on_runs_of_repeated_exchanges(items, timed, close_after, options, lane_bounds, clean,
                                                  batch):
     """Long stretches, each ended by an anomaly (or a tick, a question, a move...)."""
     flat = []
@@ -148,14 +154,14 @@ def test_feed_all_on_runs_of_repeated_exchanges(items, timed, close_after, optio
 
 @settings(max_examples=100, deadline=None)
 @given(events, gaps, cuts, st.booleans(), line_error_at, st.booleans(), st.sampled_from(BATCHES))
-def test_feed_all_on_the_decode_equivalence_conversations(items, dts, sizes, timed, flagged, clean, batch):
+def test_feed_many_on_the_decode_equivalence_conversations(items, dts, sizes, timed, flagged, clean, batch):
     """Random traffic (few exchanges repeat): whole-frame chunks and cut ones."""
     for size in (sizes, [64]):
         ops: list[Op] = [("feed", c) for c in chunks_of(items * 3, dts * 3, size, timed, flagged)]
         assert_same(ops, None, None, clean, batch)
 
 
-def test_feed_all_on_the_corpus():
+def test_feed_many_on_the_corpus():
     for path in corpus_cases():
         items, dts = read_corpus_case(path)
         for timed in (True, False):
@@ -196,8 +202,49 @@ def test_clean_false_leaves_out_only_what_it_does_not_make():
     wrong = fr.ReadOutputsAnswer(o=3).to_bytes()
     ops += [("feed", Chunk(t, HOST, PAIRS[3][0])), ("feed", Chunk(t + 0.002, DEVICE, wrong))]
     analyzer = Analyzer()
-    got = [r for records in analyzer.feed_all([c for _, c in ops], clean=False) for r in records]
+    got: list[Record] = []
+    chunks = iter([c for _, c in ops])
+    while analyzer.feed_many(chunks, got, clean=False):
+        pass
     assert any(r.violations for r in got)
     assert len(got) < 40  # the stretches' clean records not made
     assert analyzer.summary()["frames"] == {"host": 301, "device": 301}
     assert_same(ops, clean=False)
+
+
+class _Stop(Exception):
+    pass
+
+
+@settings(max_examples=200, deadline=None)
+@given(runs, st.booleans(), st.integers(0, 400), st.sampled_from(BATCHES))
+def test_an_exception_from_the_chunks_loses_nothing(items, timed, stop_at, batch):
+    """The chunk iterator fails part way (a reader's error, Ctrl-C), inside a stretch or not: the records
+    of every chunk taken before it are in ``out`` and the state is what ``feed`` leaves after them, so the
+    analyzer goes on (here: with the rest of the chunks) exactly as the full path."""
+    flat = []
+    for k, repeat, latency, end in items:
+        flat += [(("clean", k), 0.01, latency, 0)] * repeat + [end]
+    chunks = [arg for what, arg in ops_of(flat, timed) if what == "feed"]
+    stop_at = min(stop_at, len(chunks))
+
+    def failing() -> Iterator[Chunk]:
+        yield from chunks[:stop_at]
+        raise _Stop
+
+    fast, slow = Analyzer(), Analyzer(fast=False)
+    got: list[Record] = []
+    with pytest.raises(_Stop):
+        iterator = failing()
+        while fast.feed_many(iterator, got, True, batch):
+            pass
+    want = [r for chunk in chunks[:stop_at] for r in slow.feed(chunk)]
+    assert got == want
+    assert fast.summary() == slow.summary()
+    rest = iter(chunks[stop_at:])
+    while fast.feed_many(rest, got, True, batch):
+        pass
+    want += [r for chunk in chunks[stop_at:] for r in slow.feed(chunk)]
+    got += fast.close()
+    want += slow.close()
+    assert got == want and state(fast) == state(slow) and fast.summary() == slow.summary()
