@@ -136,7 +136,7 @@ class _Change:
         self.points = {n: fact for n, fact in points1.items() if points0.get(n, _MISSING) != fact}
         self.dropped = tuple(n for n in points0 if n not in points1)
         self.after = after
-        self.key = _key(after)
+        self.key: tuple[Any, ...] | None = None  # ``after`` as a memo key, made when first replayed
 
     def apply(self, k: Knowledge) -> None:
         """Make ``k`` (the memo's knowledge) what the exchange left."""
@@ -288,6 +288,7 @@ class FastLane:
         touched: list[tuple[FrameRecord, _Answer]] = []
         taken = pairs = 0
         rest: tuple[Chunk, ...] = ()  # chunks taken but not (yet) an exchange from the memo: to ``feed``
+        new, append = _new, out.append
         try:
             while taken < limit:
                 h = next(chunks, None)
@@ -328,9 +329,22 @@ class FastLane:
                     if latency <= MAX_LATENCY_S:  # as LatencyStats.add: a latency it counts
                         answer.us.append(round(latency * 1e6))
                 rest = ()
-                if clean:
-                    out.append(_clone(entry.host, i, t, None, None))
-                    out.append(_clone(answer.record, i + 1, td, i, latency))
+                if clean:  # _clone, twice, inline
+                    record = new(FrameRecord)
+                    fields = record.__dict__
+                    fields.update(entry.host.__dict__)
+                    fields["i"] = i
+                    fields["t"] = fields["t_last"] = t
+                    fields["reply_to"] = fields["latency_s"] = None
+                    append(record)
+                    record = new(FrameRecord)
+                    fields = record.__dict__
+                    fields.update(answer.record.__dict__)
+                    fields["i"] = i + 1
+                    fields["t"] = fields["t_last"] = td
+                    fields["reply_to"] = i
+                    fields["latency_s"] = latency
+                    append(record)
                 if not answer.n:
                     touched.append((entry.host, answer))
                 answer.n += 1
@@ -555,7 +569,7 @@ class FastLane:
         self._dirty = False
         self._store(command.data, host, chunk.data, record, change)
         if change is not None:
-            self._switch(change)
+            self._fresh(after)  # as a knowledge change the full path made (no key made yet)
 
     def _store(self, command: bytes, host: FrameRecord, data: bytes, record: FrameRecord,
                change: _Change | None) -> None:
@@ -576,12 +590,15 @@ class FastLane:
     def _switch(self, change: _Change) -> None:
         """The knowledge became ``change.after`` (an exchange changed it): its memo is current, the kept
         one if there is one (most recently used now), else an empty one (``_fresh``)."""
+        key = change.key
+        if key is None:
+            key = change.key = _key(change.after)
         memos = self._memos
-        memo = memos.pop(change.key, None)
+        memo = memos.pop(key, None)
         if memo is None:
             self._fresh(change.after)
             return
-        memos[change.key] = memo
+        memos[key] = memo
         self._previous = (self._snap, self._memo, self._key) if self._registered else None
-        self._snap, self._memo, self._key, self._registered = change.after, memo, change.key, True
+        self._snap, self._memo, self._key, self._registered = change.after, memo, key, True
         self._dirty = False
