@@ -5,10 +5,11 @@ command, then a device chunk that is exactly its well-formed answer, in time. Th
 (``xac1_proto.conversation.Conversation``) judges a command and its answer from three things only: the
 bytes, its own state and what it knows of the device (``knowledge``). So when, from the *quiet* state
 (nothing waiting, no move, no unreset alarm, no partial line on either framer, no line error pending),
-the full path judged command bytes C and answer bytes A with no violation at all and the knowledge came
-out equal to what it went in as, the next (C, A) from the quiet state with the same knowledge gets the
-same verdicts again, but for the per-event numbers and times (``i``, ``t``, ``t_last``, ``reply_to``,
-``latency_s``). This module keeps those verdicts, as records, in a memo and replays them:
+the full path judged command bytes C and answer bytes A with no violation at all, the next (C, A) from
+the quiet state with the same knowledge gets the same verdicts again, but for the per-event numbers and
+times (``i``, ``t``, ``t_last``, ``reply_to``, ``latency_s``), and changes the knowledge in the same way
+(a *transition*: 0RS learns the OUT ports that 0WS establishes again). This module keeps those verdicts,
+as records, and the change in a memo and replays them:
 
 - A host chunk that is a memoised C, from the quiet state and with the knowledge the memo was filled
   with, gets its record at once (the full path would give exactly that one record: a tick in the quiet
@@ -16,20 +17,27 @@ same verdicts again, but for the per-event numbers and times (``i``, ``t``, ``t_
 - If the very next call is the feed of a device chunk that is a memoised answer to C, with no line
   error, in time (``t_host <= t_device <= t_host + window``, the engine's deadline, or both untimed),
   its record comes from the memo and the bookkeeping the full path would have done is done: event
-  numbers, the engine's last time, the framers' byte counts, the device's last time, the tally.
+  numbers, the engine's last time, the framers' byte counts, the device's last time, the tally, and
+  the knowledge's change (``_Change``: the facts and points that differ), if the exchange made one.
 - Anything else (another chunk, a late or different answer, ``tick``, ``close``, a question such as
   ``waiting``) first *replays* the held chunk through the full path, its record not given or counted
   again, and then goes on as without the fast lane. Every call returns the records it returns without
   the fast lane: holding changes when the engine sees a chunk, never what comes out or when.
+- ``Analyzer.feed_many`` (decode's path) takes the chunks after a hit from their iterator in one loop
+  (``stretch``): each exchange that is again a memoised command and its memoised answer in time gets its
+  two records (or none, for an output that shows only the summary), its counts kept aside, and the
+  bookkeeping of all of them is done once when the stretch ends, however it ends.
 
 Validity: a memo belongs to one value of the knowledge; memos are kept by that value (a snapshot: the
 facts, and the points copied), so traffic that goes back and forth between a few values (0RS learns the
 OUT ports that 0WS then establishes) keeps its memos. Any full-path call may change the knowledge
 (``dirty``): the next host chunk takes a snapshot; when the value changed, an empty memo is current
 until an exchange is memoised, and then the kept memo of that value, if any, takes its place. An
-exchange fills the memo only when both its records are clean, the engine is quiet before and after it
-and the knowledge before equals the knowledge after; clean exchanges that change the knowledge many
-times in a row make the lane step aside for a while (``CHANGES``, ``BACKOFF``). Moves (0MP, 0MV) are
+exchange fills the memo of the knowledge it went in with only when both its records are clean and the
+engine is quiet before and after it; one that changed the knowledge is kept with its change, and its
+replay makes the memo of the knowledge after it current (kept by value: ``_switch``). Clean exchanges
+that change the knowledge many times in a row with no hit between (new point values written one after
+another) make the lane step aside for a while (``CHANGES``, ``BACKOFF``). Moves (0MP, 0MV) are
 never memoised: their answer window depends on the knowledge and they change it. The engine must be
 driven only through the analyzer (nothing here sees ``power_on`` or ``stop_input`` called on it
 directly).
@@ -37,7 +45,7 @@ directly).
 Not covered (they take the full path): ticks or other calls between a held command and its answer (the
 live sniffer ticks on every poll), chunks with a line error or split frames, a command timed and its
 answer not (or the reverse), times that are not finite or run backwards. Equivalence with the full path:
-tests/test_fastlane_equivalence.py.
+tests/test_fastlane_equivalence.py (``feed``) and tests/test_feed_many_equivalence.py (``feed_many``).
 """
 
 from __future__ import annotations
