@@ -332,7 +332,8 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
                     emit(records)
                     progress.update()
             else:  # in bulk; clean frame records only where something shows or counts them
-                clean = show is not None or html_report is not None or tally is not None
+                shows_clean = show is not None and not (args.only_violations and not args.header)
+                clean = shows_clean or html_report is not None or tally is not None
                 chunks = _data_came(capture, report)
                 pending: list[Any] = []
                 try:
