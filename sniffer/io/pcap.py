@@ -19,13 +19,15 @@ interfaces, record count, last time and direction). The careful walk (``_pcap_re
 ``_pcapng_block``, ``_chunk``) reads one record at a time through ``_Buffer.peek``/``skip`` and knows
 every case above. The fast walk runs over the bytes already read (``_Buffer.window``: one block of
 ``_READ`` or more bytes, no copy) with ``struct.unpack_from`` at an offset and locals only, and takes
-the common record alone: for pcapng an EPB in the section's byte order, whole in the block, its
-plausible length repeated at its end, on a serial interface; for pcap a record whose length and time
-fraction are sane and that is whole in the block; then an RTAC TX/RX event with sane microseconds and
-a time ``Clock`` accepts. It builds no ``where`` text (nothing is reported) and hands anything else,
-unchanged, to the careful walk for one record: damage, SHB, IDB, SPB, other events, a record cut by
-the end of the block (the careful walk reads on). So both walks give the same chunks and problems.
-Memory: one block of the file plus at most one record's (or one ``_SCAN`` look-ahead's) bytes.
+the common record alone: for pcapng an EPB in the section's byte order, whole in the block with the
+next block's header (one unpack reads its trailing length and that header), the length plausible and
+repeated, on a serial interface; for pcap a record whose length and time fraction are sane and that is
+whole in the block; then an RTAC TX/RX event with sane microseconds and a time ``Clock`` accepts. It
+builds no ``where`` text (nothing is reported), counts the records as the careful walk does, hands its
+state back when it stops, and leaves anything else, unchanged, to the careful walk for one record:
+damage, SHB, IDB, SPB, other events, a bad time, a record cut by the end of the block (the careful walk
+reads on). So both give the same chunks and problems, in the same order. Memory: one block of the
+file plus at most one record's (or one ``_SCAN`` look-ahead's) bytes.
 
 Host side default: ``TX`` (the capturing port sent the commands). The writer (``PcapngWriter``) writes
 host bytes as TX and device bytes as RX, so its files read back with the default.
