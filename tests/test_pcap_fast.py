@@ -618,7 +618,7 @@ LATE = 1_790_000_000_000_000  # microseconds
     + ng(">", shb(">"), idb(">", 147, TSRESOL_2_20), epb(">", rtac(1, b"z", 0, 0), ts=LATE),
          epb(">", rtac(2, b"odd"), padded=False), epb(">", rtac(1, b"lost"))),
     damage=[], sizes=(1 << 17, 509), small=True, host_is=None, give_up=None)
-@example(  # an IDB's if_tsresol option without its value byte: the reader (and the reference) raise
+@example(  # an IDB's if_tsresol option without its value byte (it crashed both): microseconds
     pieces=ng("<", shb(), idb("<", 250, struct.pack("<HH", 9, 1)), epb("<", rtac(1, b"a"))),
     damage=[], sizes=(4096, 1), small=False, host_is=None, give_up=None)
 def test_pcapng_files_read_as_the_reference_reads_them(folder, pieces, damage, sizes, small, host_is,
@@ -763,3 +763,10 @@ def test_new_chunk_is_a_chunk(t, d, data, error) -> None:
         assert pickle.loads(pickle.dumps(fast)) == fast
     with pytest.raises(dataclasses.FrozenInstanceError):
         fast.t = 0.0  # type: ignore[misc]
+
+
+def test_an_if_tsresol_option_cut_before_its_value_is_the_default() -> None:
+    """An IDB whose if_tsresol option has no value byte left (it raised IndexError: a traceback from
+    ``xac1 decode``): the default unit, microseconds."""
+    assert p._tsresol(struct.pack("<HH", 9, 1), "<") == 1e-6
+    assert p._tsresol(struct.pack("<HHB3x", 9, 1, 3), "<") == 1e-3

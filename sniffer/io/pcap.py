@@ -530,7 +530,7 @@ def _tsresol(options: bytes, order: str) -> float:
         code, length = struct.unpack(order + "HH", options[i:i + 4])
         if code == 0:
             break
-        if code == 9 and length >= 1:
+        if code == 9 and length >= 1 and i + 4 < len(options):  # (its value byte cut off: the default)
             v = options[i + 4]
             return 2.0 ** -(v & 0x7F) if v & 0x80 else 10.0 ** -v
         i += 4 + (length + 3) // 4 * 4
