@@ -768,5 +768,5 @@ def test_new_chunk_is_a_chunk(t, d, data, error) -> None:
 def test_an_if_tsresol_option_cut_before_its_value_is_the_default() -> None:
     """An IDB whose if_tsresol option has no value byte left (it raised IndexError: a traceback from
     ``xac1 decode``): the default unit, microseconds."""
-    assert p._tsresol(struct.pack("<HH", 9, 1), "<") == 1e-6
-    assert p._tsresol(struct.pack("<HHB3x", 9, 1, 3), "<") == 1e-3
+    assert pcap_mod._tsresol(struct.pack("<HH", 9, 1), "<") == 1e-6
+    assert pcap_mod._tsresol(struct.pack("<HHB3x", 9, 1, 3), "<") == 1e-3
