@@ -1,17 +1,29 @@
 """Output sinks for analyzer records: a colour text view (rich) and JSON lines, plus the summary.
 
-``make_view("text"|"jsonl", stream)`` gives an object with ``write(record)`` and ``summary(dict)``.
+``make_view("text"|"jsonl", stream)`` gives an object with ``write(record)`` (``write_many(records)``:
+the same for each) and ``summary(dict)``.
 The text view prints one line per record (time, record number, direction, the raw bytes with escapes,
 the decoded frame, and for answers which command they answer and the latency), then one line per
 violation with its docs/protocol.md meaning and the detail; errors in red, notices in yellow. Colour is on
 when the stream is a terminal (``color`` forces it). ``xac1 sniff``, ``xac1 proxy`` and ``xac1 decode``
 share these.
+
+Speed: most records of a capture repeat a few contents (the analyzer's fast lane clones a few template
+records, sharing their frame, bytes and verdicts) and differ only in their numbers (``i``, ``t``,
+``reply_to``, the latency). For frame records both views keep, per distinct content (the frame by
+identity, the other fields by value; ``_Templates``), what they printed of it with the numbers left out,
+and format only the numbers per record, exactly as ``json.dumps`` and the text line do
+(tests/test_view_fast.py). Other records, and colour, take the general path.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
-from typing import IO, Any, Protocol
+import json
+from collections.abc import Callable, Iterable
+from math import modf
+from operator import itemgetter
+from typing import IO, Any, Generic, Protocol, TypeVar
 
 from rich.console import Console
 from rich.markup import escape
@@ -26,12 +38,23 @@ _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
 # byte -> how it is shown: printable ASCII as is, CR LF and backslash escaped, the rest \xNN
 _SHOWN = {b: _ESCAPES.get(b) or (chr(b) if 0x20 <= b < 0x7F else f"\\x{b:02X}") for b in range(256)}
 BATCH_LINES = 512  # an offline view writes this many lines at a time (one write, not one per line)
+TEMPLATES = 2048  # distinct frame record contents a view remembers (``_Templates``)
 
 Part = tuple[str, str]  # a piece of a line and its rich style ("" for none)
+T = TypeVar("T")
+
+# what ``Record.to_json`` does (``json.dumps(to_dict(), separators=(",", ":"))``), the encoder made once
+_ENCODE: Callable[[Any], str] = json.JSONEncoder(separators=(",", ":")).encode
+_RECORD_TYPES = (FrameRecord, JunkRecord, TimeoutRecord)
+_NUMBERS = ("i", "t", "reply_to", "latency_ms")  # a frame record's JSON keys that vary record by record
+_MS = tuple(f"{ms:03d}" for ms in range(1000))
+# what a frame record's output depends on but its numbers and its frame (``_Templates``)
+_STATIC = itemgetter("dir", "raw", "header", "violations", "details", "line_errors", "sides")
 
 
 class View(Protocol):
     def write(self, record: Record) -> None: ...
+    def write_many(self, records: Iterable[Record]) -> None: ...
     def summary(self, summary: dict[str, Any]) -> None: ...
     def flush(self) -> None: ...
 
@@ -49,6 +72,136 @@ def show_time(t: float | None) -> str:
     except (ValueError, OverflowError, OSError):  # NaN, infinite or absurd: a damaged time
         return f"{'?' + repr(t):>12.12}"
     return f"{d.hour:02d}:{d.minute:02d}:{d.second:02d}.{d.microsecond // 1000:03d}"
+
+
+class _Clock:
+    """``show_time`` with the clock of the last whole second remembered: ``datetime.fromtimestamp`` splits
+    a float time into whole seconds and microseconds (C ``modf``, microseconds rounded half to even, carried
+    into the seconds) and the clock depends on the whole seconds only; that split is done here the same
+    way. Anything else (no time, not a float, NaN, infinite, absurd) goes to ``show_time``. (The local
+    time zone is read once a second: a ``time.tzset`` inside a second shows from the next.)"""
+
+    __slots__ = ("_second", "_prefix")
+
+    def __init__(self) -> None:
+        self._second: float | None = None
+        self._prefix = ""  # "HH:MM:SS." of ``_second``
+
+    def show(self, t: Any) -> str:
+        if type(t) is not float or t - t != 0.0:
+            return show_time(t)
+        frac, whole = modf(t)
+        us = round(frac * 1e6)
+        if us >= 1_000_000:
+            us -= 1_000_000
+            whole += 1.0
+        elif us < 0:
+            us += 1_000_000
+            whole -= 1.0
+        if whole != self._second:
+            shown = show_time(t)
+            if "?" not in shown:  # not a damaged time: "HH:MM:SS.mmm", the clock of ``whole``
+                self._second, self._prefix = whole, shown[:-3]
+            return shown
+        return self._prefix + _MS[us // 1000]
+
+
+def _json_number(x: Any) -> str:
+    """``json.dumps`` of a number (or None, or whatever else ``to_dict`` holds there)."""
+    if type(x) is float and x - x == 0.0:
+        return float.__repr__(x)
+    if type(x) is int:
+        return int.__repr__(x)
+    return _ENCODE(x)
+
+
+def _fixed(x: float, digits: int) -> str:
+    """``repr(round(x, digits))`` for a float ``x`` from 0.001 up to 2**32 (``digits`` 6) or 1e12 (3).
+    ``f"{x:.{digits}f}"`` gives the digits ``round`` rounds to (one correctly rounded conversion: half to
+    even on the float's exact value). ``repr`` gives the shortest digits that read back as that rounded
+    float; those digits, bar trailing zeros, are they: with 3 decimals below 1e12 they are at most 15
+    significant digits (which always read back unchanged); with 6 below 2**32 a float's step is under
+    1e-6, so no other 6-decimal number reads back as the same float."""
+    text = f"{x:.{digits}f}".rstrip("0")
+    return text + "0" if text[-1] == "." else text
+
+
+def _json_t(t: Any) -> str:
+    """``json.dumps(round(t, 6))``: ``to_dict``'s ``t`` (``JsonlView.line`` inlines the usual case)."""
+    if type(t) is float and 0.001 <= t < 4294967296.0:
+        return _fixed(t, 6)
+    return "null" if t is None else _json_number(round(t, 6))
+
+
+def _json_line(record: Record) -> str:
+    """``record.to_json()`` and a newline: the records' own ``to_dict``, encoded by one encoder."""
+    if type(record) in _RECORD_TYPES:
+        return _ENCODE(record.to_dict()) + "\n"
+    return record.to_json() + "\n"
+
+
+def _json_ms(seconds: Any) -> str:
+    """``json.dumps(_ms(seconds))``: ``round(seconds * 1000.0, 3)`` (``JsonlView.line`` inlines the usual
+    case)."""
+    if seconds is None:
+        return "null"
+    ms = seconds * 1000.0
+    if type(ms) is float and 0.001 <= ms < 1e12:
+        return _fixed(ms, 3)
+    return _json_number(round(ms, 3))
+
+
+_ONCE: Any = object()  # a content seen once: no template made yet
+
+
+class _Templates(Generic[T]):
+    """What a view made (``make(record)``) of each distinct content of frame records but their numbers
+    (``i``, ``t``, ``reply_to``, the latency), the oldest dropped first beyond ``size``. Keyed on the other
+    fields' values (``_STATIC``), the frame compared by identity: frames are immutable and the records of
+    a capture share a few (equal frames may still print differently: a field 1 or True). An entry keeps
+    one frame, the latest, and holds it. A template is made the second time a content comes: records
+    that never repeat (a frame with violations is decoded anew each time) cost a look-up, not a make."""
+
+    __slots__ = ("make", "size", "_entries")
+
+    def __init__(self, make: Callable[[FrameRecord], T | None], size: int = TEMPLATES) -> None:
+        self.make = make
+        self.size = size
+        self._entries: dict[tuple[Any, ...], tuple[Any, Any]] = {}  # key -> (frame, template or _ONCE)
+
+    def get(self, record: FrameRecord) -> T | None:
+        """The template of the record's content; None when it has none (yet: first seen; or ``make``
+        gave none or raised; or a field cannot be hashed): the view's general path then does, and raises,
+        what it always did."""
+        values = record.__dict__
+        try:
+            key = _STATIC(values)
+            found = self._entries.get(key)
+            frame = values["frame"]
+        except Exception:
+            return None
+        if found is None or found[0] is not frame:
+            self._keep(key, frame, _ONCE)
+            return None
+        made: T | None = found[1]
+        if made is not _ONCE:
+            return made
+        try:
+            made = self.make(record)
+        except Exception:
+            return None
+        self._keep(key, frame, made)
+        return made
+
+    def _keep(self, key: tuple[Any, ...], frame: Any, made: Any) -> None:
+        entries = self._entries
+        entries.pop(key, None)  # another frame for the same content: the latest is kept
+        if len(entries) >= self.size:
+            del entries[next(iter(entries))]
+        entries[key] = (frame, made)
+
+    def __len__(self) -> int:
+        return len(self._entries)
 
 
 class _Lines:
@@ -82,19 +235,89 @@ def _is_terminal(stream: IO[str]) -> bool:
         return False
 
 
+def _json_template(record: FrameRecord) -> tuple[str, ...] | None:
+    """A frame record's JSON line cut around its numbers (``to_dict``'s ``i`` and ``t``, then on device
+    frames ``reply_to`` and ``latency_ms``, found in its output): 3 or 5 pieces; None when it cannot be
+    cut so."""
+    out = record.to_dict()
+    numbers = tuple(key for key in out if key in _NUMBERS)
+    if numbers not in (_NUMBERS[:2], _NUMBERS):
+        return None
+    for key in numbers:
+        out[key] = f"\0{key}\0"  # a string no other value of the line encodes to (checked below)
+    line = _ENCODE(out) + "\n"
+    marks = [_ENCODE(f"\0{key}\0") for key in numbers]
+    if any(line.count(mark) != 1 for mark in marks):
+        return None
+    pieces = [line]
+    for mark in marks:
+        pieces[-1:] = pieces[-1].split(mark)
+    return tuple(pieces)
+
+
 class JsonlView:
     """One JSON object a line (the README's schema), flushed as it goes when ``live`` (the sniffer);
-    an offline decode (``live=False``) writes lines in batches and flushes after the summary."""
+    an offline decode (``live=False``) writes lines in batches and flushes after the summary. A line is
+    exactly ``record.to_json()``; frame records' from a template of their content (module docstring)."""
 
     def __init__(self, stream: IO[str], live: bool = True) -> None:
         self.stream = stream
         self.live = live
         self._lines = _Lines(stream, live)
+        self._templates: _Templates[tuple[str, ...]] = _Templates(_json_template)
+        self._entries = self._templates._entries
 
     def write(self, record: Record) -> None:
-        self._lines.add(record.to_json() + "\n")
+        self._lines.add(self.line(record))
         if self.live:
             self.stream.flush()
+
+    def write_many(self, records: Iterable[Record]) -> None:
+        """``write`` each record (offline: no call per line on the way)."""
+        if self.live or not self._lines.batched:
+            for record in records:
+                self.write(record)
+            return
+        line, pending, lines = self.line, self._lines._pending, self._lines
+        for record in records:
+            pending.append(line(record))
+            if len(pending) >= BATCH_LINES:
+                lines.write_pending()
+
+    def line(self, record: Record) -> str:
+        """``record.to_json()`` and a newline (a frame record's from its template, the numbers formatted as
+        ``json.dumps`` does; the helpers inlined: this runs for every record)."""
+        if type(record) is not FrameRecord:
+            return _json_line(record)
+        values = record.__dict__
+        try:  # self._templates.get(record), inlined for a template made
+            found = self._entries.get(_STATIC(values))
+            pieces = found[1] if found is not None and found[0] is values["frame"] else None
+        except Exception:
+            pieces = None
+        if pieces is None or pieces is _ONCE:
+            pieces = self._templates.get(record)
+        if pieces is None:
+            return _ENCODE(record.to_dict()) + "\n"
+        i, t = record.i, record.t
+        if type(t) is float and 0.001 <= t < 4294967296.0:  # _json_t
+            when = f"{t:.6f}".rstrip("0")
+            if when[-1] == ".":
+                when += "0"
+        else:
+            when = _json_t(t)
+        if len(pieces) == 3:
+            return "".join((pieces[0], str(i) if type(i) is int else _ENCODE(i), pieces[1], when, pieces[2]))
+        reply_to, latency = record.reply_to, record.latency_s
+        if type(latency) is float and 0.001 <= latency * 1000.0 < 1e12:  # _json_ms
+            ms = f"{latency * 1000.0:.3f}".rstrip("0")
+            if ms[-1] == ".":
+                ms += "0"
+        else:
+            ms = _json_ms(latency)
+        return "".join((pieces[0], str(i) if type(i) is int else _ENCODE(i), pieces[1], when, pieces[2],
+                        str(reply_to) if type(reply_to) is int else _json_number(reply_to), pieces[3], ms,
+                        pieces[4]))
 
     def summary(self, summary: dict[str, Any]) -> None:
         self._lines.add(summary_json(summary) + "\n")
@@ -103,6 +326,28 @@ class JsonlView:
     def flush(self) -> None:
         self._lines.write_pending()
         self.stream.flush()
+
+
+class _TextTemplate:
+    """What the plain text of a frame record holds but its numbers: the line from the direction to the
+    decoded frame (``body``), whether the tail (``re #N  L ms``) may follow, and the lines after it."""
+
+    __slots__ = ("body", "device", "after")
+
+    def __init__(self, body: str, device: bool, after: tuple[str, ...]) -> None:
+        self.body = body
+        self.device = device
+        self.after = after
+
+
+def _text_template(record: FrameRecord) -> _TextTemplate | None:
+    """The template of a frame record's plain text; None when a line holds a tab (the console prints
+    those)."""
+    body = "".join(text for text, _ in _body(record))
+    after = tuple("".join(text for text, _ in parts) + "\n" for parts in _after(record))
+    if "\t" in body or any("\t" in line for line in after):
+        return None
+    return _TextTemplate(body, record.dir == "device", after)
 
 
 class TextView:
@@ -116,11 +361,13 @@ class TextView:
         # no colour system (a file, a pipe, --no-color): a line is the plain text of its pieces
         self._plain = self.console.color_system is None
         self._lines = _Lines(stream, live)
+        self._clock = _Clock()
+        self._templates: _Templates[_TextTemplate | None] = _Templates(_text_template)
 
     def _print(self, parts: list[Part]) -> None:
         """One line: what ``console.print`` prints of the pieces."""
         if self._plain:
-            plain = "".join(text for text, _ in parts)
+            plain = "".join([text for text, _ in parts])
             if "\t" not in plain:  # tabs the console expands: left to it
                 self._lines.add(plain + "\n")
                 return
@@ -128,37 +375,57 @@ class TextView:
         self.console.print(Text.assemble(*parts))
 
     def write(self, record: Record) -> None:
+        if self._plain and type(record) is FrameRecord and self._write_plain(record):
+            return
         self._print(self.line(record))
-        for parts in violation_parts(record):
+        for parts in _after(record):
             self._print(parts)
-        for error in getattr(record, "line_errors", ()):
-            self._print([("      ", ""), (f"! line error: {error}", "magenta")])
+
+    def write_many(self, records: Iterable[Record]) -> None:
+        """``write`` each record (for the decode loop: one call a batch of records)."""
+        write = self.write
+        for record in records:
+            write(record)
+
+    def _write_plain(self, record: FrameRecord) -> bool:
+        """A frame record's lines from the template of its content, without colour; False when it has
+        none (or a line holds a tab): nothing was written."""
+        template = self._templates.get(record)
+        if template is None:
+            return False
+        reply_to = record.reply_to
+        tail = ""
+        if template.device and reply_to is not None:  # _tail, the latency in ms worked out once
+            latency = record.latency_s
+            tail = f"  re #{reply_to}" if latency is None else \
+                f"  re #{reply_to}  {round(latency * 1000.0, 3):.1f} ms"
+        line = f"{self._clock.show(record.t)} #{record.i:<4} {template.body}{tail}\n"
+        if "\t" in line:
+            return False
+        lines = self._lines
+        if lines.batched and not template.after:  # lines.add(line), inlined
+            pending = lines._pending
+            pending.append(line)
+            if len(pending) >= BATCH_LINES:
+                lines.write_pending()
+            return True
+        lines.add(line)
+        for after in template.after:
+            lines.add(after)
+        return True
 
     def line(self, record: Record) -> list[Part]:
-        when = show_time(record.t)
-        if isinstance(record, TimeoutRecord):
+        if isinstance(record, TimeoutRecord):  # seldom two in a second: not worth the clock
+            when = show_time(record.t)
             waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
             return [(f"{when}       ", ""),
                     (f"device ✗ no answer to #{record.command} ({record.header or 'unknown'}){waited}",
                      "bold red")]
-        arrow = "→" if record.dir == "host" else "←"
-        colour = "cyan" if record.dir == "host" else "green"
-        head = [(f"{when} #{record.i:<4} ", ""),
-                (f"{record.dir:<6} {arrow} {show_raw(record.raw):<22}", colour)]
+        head = [(f"{self._clock.show(record.t)} #{record.i:<4} ", ""), *_body(record)]
         if isinstance(record, JunkRecord):
-            return [*head, (" ", ""), (f"junk ({record.reason})", "red")]
-        if record.frame is None:
-            decoded = f"{record.header or 'unknown'} (not decodable)"
-        else:
-            decoded = str(record.frame)
-            if record.header == spec.ALARM_HEADER:
-                decoded += f" ({spec.alarm_meaning(record.frame.fields()['code'])})"
-        tail = ""
-        if record.dir == "device" and record.reply_to is not None:
-            tail = f"  re #{record.reply_to}"
-            if record.latency_ms is not None:
-                tail += f"  {record.latency_ms:.1f} ms"
-        return [*head, (f" {decoded}", ""), (tail, "dim")]
+            return head
+        tail = _tail(record) if record.dir == "device" and record.reply_to is not None else ""
+        return [*head, (tail, "dim")]
 
     def summary(self, summary: dict[str, Any]) -> None:
         self._lines.write_pending()
@@ -169,6 +436,38 @@ class TextView:
     def flush(self) -> None:
         self._lines.write_pending()
         self.stream.flush()
+
+
+def _body(record: FrameRecord | JunkRecord) -> list[Part]:
+    """A frame or junk record's line but its time, number and tail: direction, bytes, what they are."""
+    arrow = "→" if record.dir == "host" else "←"
+    colour = "cyan" if record.dir == "host" else "green"
+    shown: Part = (f"{record.dir:<6} {arrow} {show_raw(record.raw):<22}", colour)
+    if isinstance(record, JunkRecord):
+        return [shown, (" ", ""), (f"junk ({record.reason})", "red")]
+    if record.frame is None:
+        decoded = f"{record.header or 'unknown'} (not decodable)"
+    else:
+        decoded = str(record.frame)
+        if record.header == spec.ALARM_HEADER:
+            decoded += f" ({spec.alarm_meaning(record.frame.fields()['code'])})"
+    return [shown, (f" {decoded}", "")]
+
+
+def _tail(record: FrameRecord) -> str:
+    """The end of an answer's line: the command it answers and the latency."""
+    tail = f"  re #{record.reply_to}"
+    if record.latency_ms is not None:
+        tail += f"  {record.latency_ms:.1f} ms"
+    return tail
+
+
+def _after(record: Record) -> list[list[Part]]:
+    """The lines after a record's line: its violations, then its line errors."""
+    out = violation_parts(record)
+    for error in getattr(record, "line_errors", ()):
+        out.append([("      ", ""), (f"! line error: {error}", "magenta")])
+    return out
 
 
 def violation_parts(record: Record) -> list[list[Part]]:
@@ -239,5 +538,5 @@ def make_view(fmt: str, stream: IO[str], color: bool | None = None, live: bool =
     raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
 
 
-__all__ = ["FORMATS", "FrameRecord", "JsonlView", "TextView", "View", "make_view", "show_raw",
+__all__ = ["FORMATS", "FrameRecord", "JsonlView", "TextView", "View", "make_view", "show_raw", "show_time",
            "summary_lines", "violation_lines", "violation_parts"]
