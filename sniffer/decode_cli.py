@@ -308,8 +308,15 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
     report = capture.report
     violations = 0
 
+    every = show is not None and not args.only_violations and not args.header  # every record shown
+    plain = every and tally is None and html_report is None
+
     def emit(records: list[Any]) -> None:
         nonlocal violations
+        if plain:  # the usual decode: every record to the view, in one call
+            violations += sum(1 for record in records if record.violations)
+            view.write_many(records)
+            return
         for record in records:
             if tally is not None:
                 record = _one_sided(record)
