@@ -36,6 +36,7 @@ from .records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
 FEED_BATCH: Final = 1024  # chunks ``feed_many`` takes at most (about) in one call
+FEED_BYTES: Final = 1 << 18  # bytes after which ``feed_many`` returns (its records hold them)
 
 
 class Analyzer:
@@ -72,7 +73,8 @@ class Analyzer:
 
     def feed_many(self, chunks: Iterator[Chunk], out: list[Record], clean: bool = True,
                   limit: int = FEED_BATCH) -> int:
-        """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them (one more to end an exchange):
+        """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them (one more to end an exchange)
+        or ``FEED_BYTES``:
         their records, the same and in the same order as ``feed`` one chunk at a time, appended to ``out``
         as they are made (an exception, Ctrl-C included, loses none given so far). Returns the chunks
         taken: 0 at the end.
@@ -84,8 +86,10 @@ class Analyzer:
         lane = self.lane
         feed = self.feed
         taken = 0
+        size = 0
         for chunk in chunks:
             taken += 1
+            size += len(chunk.data)
             if lane is None:
                 out += feed(chunk)
             else:
@@ -93,7 +97,7 @@ class Analyzer:
                 out += feed(chunk)
                 if lane.hits != hits and taken < limit and lane.can_stretch():
                     taken += lane.stretch(chunks, out, clean, limit - taken)
-            if taken >= limit:
+            if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                 break
         return taken
 
