@@ -15,7 +15,8 @@ there is; the engine's docstring says what it then concludes.
 
 Speed (``fast``, on by default): ``sniffer.fastlane`` memoises what this full path gave for a clean
 command and its answer from the quiet state and gives the same records again when the same two chunks
-come back under the same knowledge, bookkeeping included; every call returns what it returns without it
+come back under the same knowledge (or the same values in the part of it they read: ``sniffer.readset``),
+bookkeeping included; every call returns what it returns without it
 (tests/test_fastlane_equivalence.py). ``feed_many`` (decode's path) takes runs of such exchanges from the
 chunks' iterator in one loop (tests/test_feed_many_equivalence.py). The engine is driven only through the
 analyzer.

@@ -42,10 +42,20 @@ never memoised: their answer window depends on the knowledge and they change it.
 driven only through the analyzer (nothing here sees ``power_on`` or ``stop_input`` called on it
 directly).
 
+The reads memo (``sniffer.readset``): the full path of an observed exchange runs with the knowledge
+traced, and a clean exchange is also kept by the values of the facts and points it read, with the values
+it left in those it wrote. When the memo of the whole knowledge has no entry for a command, the reads
+memo may answer it (held, as above) if it keeps the command's bytes with reads the knowledge holds, and
+an answer to it whose reads hold too; its answer's writes are then written and the exchange is memoised
+by the whole knowledge as a full-path one would be (``_learn``), so that it repeats in stretches. This is
+what serves traffic whose anomalies keep changing the knowledge (a point forgotten after a garbled
+answer): most exchanges never read what changed.
+
 Not covered (they take the full path): ticks or other calls between a held command and its answer (the
 live sniffer ticks on every poll), chunks with a line error or split frames, a command timed and its
 answer not (or the reverse), times that are not finite or run backwards. Equivalence with the full path:
-tests/test_fastlane_equivalence.py (``feed``) and tests/test_feed_many_equivalence.py (``feed_many``).
+tests/test_fastlane_equivalence.py (``feed``), tests/test_feed_many_equivalence.py (``feed_many``) and
+tests/test_readset.py (the reads memo).
 """
 
 from __future__ import annotations
@@ -59,6 +69,7 @@ from xac1_proto import Framer, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.conversation import Conversation, Knowledge
 
+from . import readset
 from .records import _MAX_LATENCY_S as MAX_LATENCY_S
 from .records import _MAX_WAITING as MAX_WAITING
 from .records import FrameRecord, LatencyStats, Record, Tally
@@ -171,9 +182,11 @@ class _Entry:
         self.answers: dict[bytes, _Answer] = {}
 
 
-Held = tuple[Chunk, _Entry, int]  # a host chunk answered from the memo, not yet fed: (chunk, entry, its i)
-Observed = tuple[Chunk, FrameRecord, tuple[Any, ...]]  # a clean command the full path judged: (chunk,
-# its record, the knowledge before it); its answer may fill the memo
+# a host chunk answered from a memo, not yet fed: (chunk, its entry in the memo or the reads memo, its i)
+Held = tuple[Chunk, "_Entry | readset.Command", int]
+# a clean command the full path judged: (chunk, its record, the knowledge before it, what it read and wrote
+# of it); its answer may fill the memos
+Observed = tuple[Chunk, FrameRecord, tuple[Any, ...], readset.Trace]
 
 
 class Analyzer(Protocol):
@@ -227,6 +240,8 @@ class FastLane:
         self._skip = 0  # chunks left to pass straight to the full path (``BACKOFF``)
         self._backoff = BACKOFF  # the next time the lane steps aside, for this many chunks
         self._uncounted = _Uncounted()
+        self.reads = readset.ReadsMemo()  # the second memo: exchanges kept by what they read
+        self._tracer = readset.Tracer()
 
     # ---- entry points (the analyzer's) ----
 
@@ -243,8 +258,9 @@ class FastLane:
         observed = self._observed
         if observed is not None:
             self._observed = None
-            out = a._feed(chunk)
-            self._learn(observed, chunk, out)
+            with self._tracer.watching(self._conversation.knowledge) as trace:
+                out = a._feed(chunk)
+            self._learn(observed, chunk, out, trace)
             return out
         if self._skip:
             self._skip -= 1
@@ -420,7 +436,9 @@ class FastLane:
         a = self.analyzer
         if self._dirty:
             self._select(knowledge_snapshot(self._conversation.knowledge))
-        entry = self._memo.get(chunk.data)
+        entry: _Entry | readset.Command | None = self._memo.get(chunk.data)
+        if entry is None:
+            entry = self.reads.command(chunk.data, self._conversation.knowledge)
         if entry is not None:
             i = self._conversation._next_i
             record = _clone(entry.host, i, chunk.t, None, None)
@@ -429,9 +447,10 @@ class FastLane:
             return [record]
         before = self._snap
         assert before is not None
-        out = a._feed(chunk)
+        with self._tracer.watching(self._conversation.knowledge) as trace:
+            out = a._feed(chunk)
         self._dirty = True
-        self._observe(chunk, out, before)
+        self._observe(chunk, out, before, trace)
         return out
 
     def _select(self, now: tuple[Any, ...]) -> None:
@@ -478,7 +497,8 @@ class FastLane:
         self._commands -= len(self._memos.pop(oldest))
         return True
 
-    def _observe(self, chunk: Chunk, out: list[Record], before: tuple[Any, ...]) -> None:
+    def _observe(self, chunk: Chunk, out: list[Record], before: tuple[Any, ...],
+                 trace: readset.Trace) -> None:
         """Watch for the answer of a host chunk the full path judged clean (not a move)."""
         if len(out) == 1:
             record = out[0]
@@ -486,7 +506,7 @@ class FastLane:
                     and record.raw == chunk.data
                     and record.header not in spec.MOVE_HEADERS and record.window_s is not None
                     and not self._host._buf):
-                self._observed = (chunk, record, before)
+                self._observed = (chunk, record, before, trace)
 
     def _replay(self, held: Held) -> None:
         """The held chunk through the full path, as it would have gone; its record is not counted again
@@ -495,13 +515,14 @@ class FastLane:
         tally = a.tally
         a.tally = self._uncounted
         try:
-            out = a._feed(held[0])
+            with self._tracer.watching(self._conversation.knowledge) as trace:
+                out = a._feed(held[0])
         finally:
             a.tally = tally
         self.replays += 1
         self._dirty = True
         assert self._snap is not None
-        self._observe(held[0], out, self._snap)
+        self._observe(held[0], out, self._snap, trace)
 
     # ---- the answer ----
 
@@ -511,6 +532,8 @@ class FastLane:
         if chunk.dir != DEVICE or chunk.error is not None or type(chunk.data) is not bytes:
             return None
         command, entry, i = held
+        if type(entry) is not _Entry:
+            return self._answer_read(held, chunk)
         answer = entry.answers.get(chunk.data)
         if answer is None:
             return None
@@ -524,10 +547,21 @@ class FastLane:
             return None
         else:
             latency = t - t_host
+        record = self._answered(command, chunk, template, i, latency)
+        change = answer.change
+        if change is not None:
+            change.apply(self._conversation.knowledge)
+            self._switch(change)
+        return [record]
+
+    def _answered(self, command: Chunk, chunk: Chunk, template: FrameRecord, i: int,
+                  latency: float | None) -> FrameRecord:
+        """The record of an answer from a memo (``template``), with what the full path would have done for
+        the command and its answer: the two events numbered, time passed to the command's time then the
+        answer's (the engine's tick, twice each: idempotent), the answer no longer arriving, the framers'
+        byte counts, the device's last time, the tally."""
+        t_host, t = command.t, chunk.t
         record = _clone(template, i + 1, t, i, latency)
-        # what the full path would have done: the two events numbered, time passed to t_host then t
-        # (the engine's tick, twice each: idempotent), the answer no longer arriving, the framers' byte
-        # counts, the device's last time
         c = self._conversation
         c._next_i = i + 2
         if t is not None and t_host is not None:
@@ -541,19 +575,45 @@ class FastLane:
         self.analyzer.tally.add_clean_frame(record)
         self.hits += 1
         self._changes, self._backoff = 0, BACKOFF
-        change = answer.change
-        if change is not None:
-            change.apply(c.knowledge)
-            self._switch(change)
+        return record
+
+    def _answer_read(self, held: Held, chunk: Chunk) -> list[Record] | None:
+        """``_answer`` for a command from the reads memo: the answer's record when the reads memo holds
+        these bytes for the knowledge as it is, in time; what it wrote is written, and the exchange is
+        memoised by the whole knowledge (``_learn``) so that its next time takes the plain memo."""
+        command, entry, i = held
+        assert isinstance(entry, readset.Command)
+        c = self._conversation
+        answer = entry.answer(chunk.data, c.knowledge)
+        if answer is None:
+            return None
+        t_host, t = command.t, chunk.t
+        if t_host is None:
+            if t is not None:
+                return None
+            latency = None
+        elif t is None or not t_host <= t <= t_host + entry.window:  # the engine's deadline, its sum
+            return None
+        else:
+            latency = t - t_host
+        before = self._snap
+        assert before is not None
+        record = self._answered(command, chunk, answer.record, i, latency)
+        self.reads.hits += 1
+        answer.writes.apply(c.knowledge)
+        host = _clone(entry.host, i, t_host, None, None)
+        self._learn((command, host, before, None), chunk, [record], None)
         return [record]
 
-    def _learn(self, observed: Observed, chunk: Chunk, out: list[Record]) -> None:
-        """After the full path fed the chunk right after an observed command: memoise the exchange when it
-        is clean, leaves the engine quiet and the knowledge as it was."""
+    def _learn(self, observed: tuple[Chunk, FrameRecord, tuple[Any, ...], readset.Trace | None], chunk: Chunk,
+               out: list[Record], answered: readset.Trace | None) -> None:
+        """After the chunk right after an observed command was fed (or answered from the reads memo:
+        ``answered`` None): memoise the exchange when it is clean and leaves the engine quiet, with the
+        change it made to the knowledge; and, traced, keep it in the reads memo."""
         self._dirty = True
         if len(out) != 1 or chunk.dir != DEVICE or chunk.error is not None or type(chunk.data) is not bytes:
             return
-        command, host, before = observed
+        command, host, before, asked = observed
         record = out[0]
         t_host, t = command.t, chunk.t
         if (t_host is None) != (t is None) or (t is not None and t_host is not None and not t_host <= t):
@@ -566,6 +626,8 @@ class FastLane:
                 and not self._errors[HOST] and not self._errors[DEVICE]):
             return
         after = knowledge_snapshot(c.knowledge)
+        if asked is not None and answered is not None:
+            self.reads.keep(command.data, host, asked, chunk.data, record, answered, before, after)
         change = None
         if after != before:
             self._changes += 1

@@ -11,6 +11,9 @@ not make a frame invalid: decoders accept any alarm code.
 
 from __future__ import annotations
 
+import functools
+from typing import Final
+
 import construct as cs
 
 from . import grammar, spec
@@ -184,10 +187,20 @@ def diagnose(data: bytes, role: str) -> tuple[Frame | None, list[Violation]]:
     clean = decode_clean(data, role)  # most traffic: a well-formed frame, no walk needed
     if clean is not None:
         return clean, []
+    frame, found = _diagnose_faulty(data, role)
+    return frame, list(found)
+
+
+FAULTY_CACHE: Final = 1024  # distinct faulty (bytes, role) remembered: a capture repeats its faults too
+
+
+@functools.lru_cache(maxsize=FAULTY_CACHE)
+def _diagnose_faulty(data: bytes, role: spec.Role) -> tuple[Frame | None, tuple[Violation, ...]]:
+    """``diagnose`` of bytes that are not a clean frame (frames and violations are immutable)."""
     out: list[Violation] = []
     fs = _find_spec(data, role, out)
     if fs is None:
-        return None, out
+        return None, tuple(out)
     if len(data) != fs.length:
         at = min(len(data), fs.length)
         out.append(Violation("bad-length", at, f"{fs.header} {role}: byte {at}: expected "
@@ -196,8 +209,8 @@ def diagnose(data: bytes, role: str) -> tuple[Frame | None, list[Violation]]:
     values = _walk(body, fs, out)
     out.sort(key=lambda v: (spec.CHECK_ORDER.get(v.code, 9), v.offset or 0))
     if values is None:
-        return None, out
-    return FRAME_CLASSES[fs.key].unchecked(**values), out
+        return None, tuple(out)
+    return FRAME_CLASSES[fs.key].unchecked(**values), tuple(out)
 
 
 def parse(data: bytes, role: str) -> Frame:
