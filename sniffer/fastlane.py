@@ -46,8 +46,10 @@ The reads memo (``sniffer.readset``): the full path of an observed exchange runs
 traced, and a clean exchange is also kept by the values of the facts and points it read, with the values
 it left in those it wrote. When the memo of the whole knowledge has no entry for a command, the reads
 memo may answer it (held, as above) if it keeps the command's bytes with reads the knowledge holds, and
-an answer to it whose reads hold too; its answer's writes are then written and the exchange is memoised
-by the whole knowledge as a full-path one would be (``_learn``), so that it repeats in stretches. This is
+an answer to it whose reads hold too; its answer's writes are then written, and when the memo of the
+knowledge holds exchanges already, or the knowledge has kept its value for ``SETTLED`` such exchanges,
+the exchange is memoised by the whole knowledge as a full-path one would be (``_learn``), so that it
+repeats in stretches. This is
 what serves traffic whose anomalies keep changing the knowledge (a point forgotten after a garbled
 answer): most exchanges never read what changed.
 
@@ -87,6 +89,11 @@ ANSWERS: Final = 8
 CHANGES: Final = 8
 BACKOFF: Final = 64
 BACKOFF_MAX: Final = 4096
+# An exchange from the reads memo is memoised by the whole knowledge too (so that it repeats in stretches)
+# when the memo of the knowledge it went in with holds exchanges already, or once the knowledge has stayed
+# a value without one for SETTLED exchanges: while anomalies keep changing the knowledge to new values
+# (every tenth exchange), an exchange seldom comes back before the value it was memoised under is gone.
+SETTLED: Final = 16
 _KNOWLEDGE_FIELDS: Final = tuple(f.name for f in dataclasses.fields(Knowledge))
 _FACT_NAMES: Final = tuple(n for n in _KNOWLEDGE_FIELDS if n != "points")
 _FACTS: Final = attrgetter(*_FACT_NAMES)
@@ -239,6 +246,7 @@ class FastLane:
         self._changes = 0  # clean exchanges that changed the knowledge, none memoised or hit between
         self._skip = 0  # chunks left to pass straight to the full path (``BACKOFF``)
         self._backoff = BACKOFF  # the next time the lane steps aside, for this many chunks
+        self._settled = 0  # exchanges since the knowledge last became a value without a kept memo
         self._uncounted = _Uncounted()
         self.reads = readset.ReadsMemo()  # the second memo: exchanges kept by what they read
         self._tracer = readset.Tracer()
@@ -468,6 +476,7 @@ class FastLane:
         back = self._previous
         self._previous = (self._snap, self._memo, self._key) if self._registered else None
         self._dirty = False
+        self._settled = 0
         if back is not None and back[0] == now and self._memos.get(back[2]) is back[1]:
             memo, key = back[1], back[2]
             self._memos[key] = self._memos.pop(key)  # the most recently used last
@@ -580,7 +589,8 @@ class FastLane:
     def _answer_read(self, held: Held, chunk: Chunk) -> list[Record] | None:
         """``_answer`` for a command from the reads memo: the answer's record when the reads memo holds
         these bytes for the knowledge as it is, in time; what it wrote is written, and the exchange is
-        memoised by the whole knowledge (``_learn``) so that its next time takes the plain memo."""
+        memoised by the whole knowledge (``_learn``) when its memo holds exchanges or the knowledge has
+        settled (``SETTLED``), so that its next time takes the plain memo."""
         command, entry, i = held
         assert isinstance(entry, readset.Command)
         c = self._conversation
@@ -601,8 +611,12 @@ class FastLane:
         record = self._answered(command, chunk, answer.record, i, latency)
         self.reads.hits += 1
         answer.writes.apply(c.knowledge)
-        host = _clone(entry.host, i, t_host, None, None)
-        self._learn((command, host, before, None), chunk, [record], None)
+        self._settled += 1
+        if self._registered or self._settled >= SETTLED:
+            host = _clone(entry.host, i, t_host, None, None)
+            self._learn((command, host, before, None), chunk, [record], None)
+        else:
+            self._dirty = True  # the writes may have changed the knowledge: the next command looks
         return [record]
 
     def _learn(self, observed: tuple[Chunk, FrameRecord, tuple[Any, ...], readset.Trace | None], chunk: Chunk,
