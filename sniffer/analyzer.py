@@ -32,7 +32,7 @@ from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
 from .fastlane import FastLane
-from .records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
+from .records import CleanExchange, FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
@@ -72,15 +72,17 @@ class Analyzer:
             return self.lane.feed(chunk)
         return self._feed(chunk)
 
-    def feed_many(self, chunks: Iterator[Chunk], out: list[Record], clean: bool = True,
-                  limit: int = FEED_BATCH) -> int:
+    def feed_many(self, chunks: Iterator[Chunk], out: list[Record | CleanExchange], clean: bool = True,
+                  limit: int = FEED_BATCH, lean: bool = False) -> int:
         """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them (one more to end an exchange)
         or ``FEED_BYTES``:
         their records, the same and in the same order as ``feed`` one chunk at a time, appended to ``out``
         as they are made (an exception, Ctrl-C included, loses none given so far). Returns the chunks
         taken: 0 at the end.
         ``clean`` False: clean frame records that the fast lane answers in bulk are counted, not made (an
-        output of only the summary needs none); every other record still comes.
+        output of only the summary needs none); every other record still comes. ``lean``: such an exchange
+        comes as one ``CleanExchange`` (the memo's records and the numbers: what a JSON lines view prints)
+        instead of its two records.
 
         Faster than ``feed`` one chunk at a time: after an exchange answered from the memo, the next ones
         are taken in one loop (``FastLane.stretch``), their bookkeeping done once."""
@@ -97,7 +99,7 @@ class Analyzer:
                 hits = lane.hits
                 out += feed(chunk)
                 if lane.hits != hits and taken < limit and lane.can_stretch():
-                    taken += lane.stretch(chunks, out, clean, limit - taken)
+                    taken += lane.stretch(chunks, out, clean, limit - taken, lean)
             if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                 break
         return taken

@@ -287,7 +287,7 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
             summaries: list[dict[str, Any]] | None = None) -> int:
     from .analyzer import Analyzer
     from .io.base import WrongFormat
-    from .records import Tally
+    from .records import CleanExchange, Tally
     from .view import make_view
 
     options: dict[str, Any] = {}
@@ -313,11 +313,12 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
 
     every = show is not None and not args.only_violations and not args.header  # every record shown
     plain = every and tally is None and html_report is None
+    lean = plain and args.format == "jsonl"  # exchanges from the memo as CleanExchange: no records made
 
     def emit(records: list[Any]) -> None:
         nonlocal violations
         if plain:  # the usual decode: every record to the view, in one call
-            violations += sum(1 for record in records if record.violations)
+            violations += sum(1 for r in records if type(r) is not CleanExchange and r.violations)
             view.write_many(records)
             return
         for record in records:
@@ -347,7 +348,7 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
                 chunks = _data_came(capture, report)
                 pending: list[Any] = []
                 try:
-                    while analyzer.feed_many(chunks, pending, clean):
+                    while analyzer.feed_many(chunks, pending, clean, lean=lean):
                         emit(pending)
                         pending = []
                         progress.update()

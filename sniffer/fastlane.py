@@ -74,7 +74,7 @@ from xac1_proto.conversation import Conversation, Knowledge
 from . import readset
 from .records import _MAX_LATENCY_S as MAX_LATENCY_S
 from .records import _MAX_WAITING as MAX_WAITING
-from .records import FrameRecord, LatencyStats, Record, Tally
+from .records import CleanExchange, FrameRecord, LatencyStats, Record, Tally
 
 # Bounds (memory stays flat whatever the traffic: about 2 KB a memoised command): memos kept, one per
 # value of the knowledge, the least recently used dropped first; memoised commands in all of them; answers
@@ -303,12 +303,13 @@ class FastLane:
         return (self._held is None and self._observed is None and not self._skip and not self._dirty
                 and len(self.analyzer.tally._headers) < MAX_WAITING)
 
-    def stretch(self, chunks: Iterator[Chunk], out: list[Record], clean: bool, limit: int) -> int:
+    def stretch(self, chunks: Iterator[Chunk], out: list[Record | CleanExchange], clean: bool, limit: int,
+                lean: bool = False) -> int:
         """After a hit (``can_stretch``): take the following chunks while they are exchanges that hit too,
         up to ``limit`` chunks, giving each its two records (into ``out``; ``clean`` False: not made, only
-        counted: they are clean frame records) and doing the bookkeeping ``feed`` would do for each, once
-        at the end. The first chunks that are not such an exchange go to ``feed``. Returns the chunks
-        taken.
+        counted: they are clean frame records; ``lean``: a ``CleanExchange`` instead) and doing the
+        bookkeeping ``feed`` would do for each, once at the end. The first chunks that are not such an
+        exchange go to ``feed``. Returns the chunks taken.
 
         An exchange here is what ``feed`` followed by ``feed`` would answer from the memo: after a hit the
         state is quiet and the knowledge unchanged, so each hit leaves the next exchange the same checks:
@@ -324,6 +325,7 @@ class FastLane:
         taken = pairs = 0
         rest: tuple[Chunk, ...] = ()  # chunks taken but not (yet) an exchange from the memo: to ``feed``
         new, set_dict, append = _new, _set_dict, out.append
+        new_tuple = tuple.__new__
         try:
             while taken < limit:
                 h = next(chunks, None)
@@ -364,7 +366,9 @@ class FastLane:
                     if latency <= MAX_LATENCY_S:  # as LatencyStats.add: a latency it counts
                         answer.us.append(round(latency * 1e6))
                 rest = ()
-                if clean:  # _clone, twice, inline
+                if lean:
+                    append(new_tuple(CleanExchange, (entry.host, answer.record, i, t, td, latency)))
+                elif clean:  # _clone, twice, inline
                     fields = entry.host.__dict__.copy()
                     fields["i"] = i
                     fields["t"] = fields["t_last"] = t

@@ -16,7 +16,7 @@ import json
 import math
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
@@ -154,6 +154,27 @@ class TimeoutRecord:
 
 
 Record = FrameRecord | JunkRecord | TimeoutRecord
+
+
+class CleanExchange(NamedTuple):
+    """A clean command and its clean answer, answered from the fast lane's memo, that
+    ``Analyzer.feed_many(lean=True)`` gives instead of their two records (an output of JSON lines needs
+    none: ``JsonlView`` prints them from the memo's records): ``host`` and ``answer`` are the records they
+    would be made from, the rest what differs; ``records()`` makes the two records."""
+
+    host: FrameRecord
+    answer: FrameRecord
+    i: int
+    t: float | None
+    t_answer: float | None
+    latency_s: float | None
+
+    def records(self) -> tuple[FrameRecord, FrameRecord]:
+        """The two records ``Analyzer.feed`` gives for this exchange."""
+        i = self.i
+        return (dataclasses.replace(self.host, i=i, t=self.t, t_last=self.t, reply_to=None, latency_s=None),
+                dataclasses.replace(self.answer, i=i + 1, t=self.t_answer, t_last=self.t_answer, reply_to=i,
+                                    latency_s=self.latency_s))
 
 
 _MAX_LATENCY_S = 1e6  # a latency beyond this comes from damaged times and is not counted

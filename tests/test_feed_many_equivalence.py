@@ -12,6 +12,7 @@ ports that ``0WS`` then establishes) are memoised as transitions and replayed by
 
 from __future__ import annotations
 
+import io
 import json
 from collections.abc import Iterator
 from typing import Any
@@ -44,7 +45,8 @@ from test_fastlane_equivalence import (
 )
 
 from sniffer.analyzer import Analyzer
-from sniffer.records import FrameRecord, Record
+from sniffer.records import CleanExchange, FrameRecord, Record
+from sniffer.view import JsonlView
 from xac1_proto import frames as fr
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 
@@ -66,9 +68,10 @@ def _groups(ops: list[Op]) -> list[tuple[str, Any]]:
 
 
 def _run(ops: list[Op], fast: bool, close_at: float | None, options: dict[str, Any], clean: bool,
-         batch: int) -> tuple[list[Any], Analyzer]:
+         batch: int, lean: bool = False) -> tuple[list[Any], Analyzer]:
     """Each group's result and the state after it; the fast analyzer takes each run of chunks through one
-    ``feed_many``, the reference feeds them one at a time on the full path."""
+    ``feed_many`` (``lean``: each ``CleanExchange`` it gives expanded into its records), the reference
+    feeds them one at a time on the full path."""
     analyzer = Analyzer(fast=fast, **options)
     out: list[Any] = []
     for what, arg in _groups(ops):
@@ -77,9 +80,10 @@ def _run(ops: list[Op], fast: bool, close_at: float | None, options: dict[str, A
                 got: list[Record] = []
                 chunks = iter(arg)
                 taken = []
-                while n := analyzer.feed_many(chunks, got, clean, batch):
+                while n := analyzer.feed_many(chunks, got, clean, batch, lean):  # type: ignore[arg-type]
                     taken.append(n)
                 assert sum(taken) == len(arg) and max(taken) <= batch + 1  # about ``batch`` a call
+                got = [r for x in got for r in (x.records() if type(x) is CleanExchange else (x,))]
             else:
                 got = [r for chunk in arg for r in analyzer.feed(chunk)]
             out.append(got)
@@ -107,8 +111,8 @@ def _subsequence(part: list[Record], whole: list[Record]) -> bool:
 
 
 def assert_same(ops: list[Op], close_at: float | None = None, options: dict[str, Any] | None = None,
-                clean: bool = True, batch: int = 1024) -> Analyzer:
-    fast, analyzer = _run(ops, True, close_at, options or {}, clean, batch)
+                clean: bool = True, batch: int = 1024, lean: bool = False) -> Analyzer:
+    fast, analyzer = _run(ops, True, close_at, options or {}, clean, batch, lean)
     slow, _ = _run(ops, False, close_at, options or {}, True, batch)
     assert len(fast) == len(slow)
     for got, want in zip(fast, slow, strict=True):
@@ -136,6 +140,44 @@ def test_feed_many_gives_the_full_paths_records(items, timed, close_after, optio
     close_at = None if close_after is None else end_of(ops) + close_after
     with bounds(lane_bounds):
         assert_same(ops, close_at, options, clean, batch)
+
+
+@settings(max_examples=600, deadline=None)
+@given(steps, st.booleans(), st.sampled_from([None, 0.0, 1.0]), st.sampled_from(OPTIONS),
+       st.sampled_from(BOUNDS), st.sampled_from(BATCHES))
+def test_feed_many_lean_gives_the_full_paths_records_and_json_lines(items, timed, close_after, options,
+                                                                     lane_bounds, batch):
+    """``lean``: each exchange a stretch takes comes as a ``CleanExchange``; its ``records()`` are the full
+    path's records, and the JSON lines view prints exactly the lines of those records."""
+    ops = ops_of(items, timed)
+    close_at = None if close_after is None else end_of(ops) + close_after
+    with bounds(lane_bounds):
+        assert_same(ops, close_at, options, True, batch, lean=True)
+        analyzer = Analyzer(**options)
+        given_: list[Any] = []
+        chunks = iter([c for what, c in ops if what == "feed"])
+        while analyzer.feed_many(chunks, given_, True, batch, lean=True):
+            pass
+    reference = Analyzer(fast=False, **options)
+    records = [r for what, c in ops if what == "feed" for r in reference.feed(c)]
+    lean_lines, record_lines = io.StringIO(), io.StringIO()
+    for stream, items_given in ((lean_lines, given_), (record_lines, records)):
+        view = JsonlView(stream, live=False)
+        view.write_many(items_given)
+        view.flush()
+    assert lean_lines.getvalue() == record_lines.getvalue()
+    assert record_lines.getvalue() == "".join(r.to_json() + "\n" for r in records)
+
+
+def test_a_lean_stretch_gives_clean_exchanges():
+    """The alternating conversation's stretches come as ``CleanExchange``s (so the comparison above compares
+    them, not the records of ``feed``)."""
+    analyzer = Analyzer()
+    given_: list[Any] = []
+    chunks = iter([c for _, c in _alternating(200)])
+    while analyzer.feed_many(chunks, given_, lean=True):
+        pass
+    assert sum(1 for item in given_ if type(item) is CleanExchange) > 150
 
 
 @settings(max_examples=800, deadline=None)
