@@ -247,6 +247,7 @@ class FastLane:
         self._skip = 0  # chunks left to pass straight to the full path (``BACKOFF``)
         self._backoff = BACKOFF  # the next time the lane steps aside, for this many chunks
         self._settled = 0  # exchanges since the knowledge last became a value without a kept memo
+        self._ticked = 0  # commands held or observed that a tick cut off, none answered from the memo between
         self._uncounted = _Uncounted()
         self.reads = readset.ReadsMemo()  # the second memo: exchanges kept by what they read
         self._tracer = readset.Tracer()
@@ -293,8 +294,19 @@ class FastLane:
             self._replay(held)
 
     def full_path(self) -> None:
-        """Before a ``tick`` or ``close``: settle, and no exchange is being observed across it."""
-        self.settle()
+        """Before a ``tick`` or ``close``: settle, and no exchange is being observed across it. Ticks that
+        keep coming between commands and their answers (the live sniffer polls the taps, and an answer
+        often comes a poll after its command) make the lane step aside, as exchanges that keep changing
+        the knowledge do: holding only to replay, or watching only to forget, costs more than it saves."""
+        held = self._held
+        if held is not None:
+            self._held = None
+            self._replay(held, observe=False)  # the observation would end here anyway
+        if held is not None or self._observed is not None:
+            self._ticked += 1
+            if self._ticked >= CHANGES:
+                self._ticked, self._skip = 0, self._backoff
+                self._backoff = min(2 * self._backoff, BACKOFF_MAX)
         self._observed = None
         self._dirty = True
 
@@ -402,7 +414,7 @@ class FastLane:
                 c._answer_since = None
                 a._device_last = device_last
                 self.hits += pairs
-                self._changes, self._backoff = 0, BACKOFF
+                self._changes, self._backoff, self._ticked = 0, BACKOFF, 0
                 self._count(touched, pairs)
             for chunk in rest:  # not an exchange from the memo (or the reader failed after it)
                 out += self.feed(chunk)
@@ -521,21 +533,25 @@ class FastLane:
                     and not self._host._buf):
                 self._observed = (chunk, record, before, trace)
 
-    def _replay(self, held: Held) -> None:
+    def _replay(self, held: Held, observe: bool = True) -> None:
         """The held chunk through the full path, as it would have gone; its record is not counted again
-        (it was given and counted when the chunk came). Its answer may still fill the memo."""
+        (it was given and counted when the chunk came). Its answer may still fill the memo (``observe``)."""
         a = self.analyzer
         tally = a.tally
         a.tally = self._uncounted
         try:
-            with self._tracer.watching(self._conversation.knowledge) as trace:
-                out = a._feed(held[0])
+            if observe:
+                with self._tracer.watching(self._conversation.knowledge) as trace:
+                    out = a._feed(held[0])
+            else:
+                a._feed(held[0])
         finally:
             a.tally = tally
         self.replays += 1
         self._dirty = True
-        assert self._snap is not None
-        self._observe(held[0], out, self._snap, trace)
+        if observe:
+            assert self._snap is not None
+            self._observe(held[0], out, self._snap, trace)
 
     # ---- the answer ----
 
@@ -587,7 +603,7 @@ class FastLane:
         self.analyzer._device_last = t
         self.analyzer.tally.add_clean_frame(record)
         self.hits += 1
-        self._changes, self._backoff = 0, BACKOFF
+        self._changes, self._backoff, self._ticked = 0, BACKOFF, 0
         return record
 
     def _answer_read(self, held: Held, chunk: Chunk) -> list[Record] | None:

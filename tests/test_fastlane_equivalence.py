@@ -432,3 +432,24 @@ def test_exchanges_that_change_the_knowledge_back_the_lane_off(monkeypatch, chan
         ops += [("feed", Chunk(t, HOST, c.to_bytes())), ("feed", Chunk(t + 0.002, DEVICE, a.to_bytes()))]
     analyzer = assert_same(ops, end_of(ops) + 2.0)
     assert analyzer.lane is not None and analyzer.lane.hits > 10
+
+
+def test_ticks_between_commands_and_answers_make_the_lane_step_aside():
+    """The live sniffer's polls: a tick between each command and its answer. A held command is replayed
+    by the tick, an observed one forgotten, so after a few the lane steps aside (as for exchanges that
+    keep changing the knowledge); the records stay the full path's."""
+    ops: list[Op] = []
+    t = T0
+    for n in range(400):
+        c, a, _ = PAIRS[n % 3]
+        ops.append(("feed", Chunk(t, HOST, c)))
+        if n >= 100:  # first learnt without ticks, then held and replayed by every tick
+            ops.append(("tick", t + 0.001))
+        ops.append(("feed", Chunk(t + 0.002, DEVICE, a)))
+        t += 0.01
+    analyzer = assert_same(ops)
+    lane = analyzer.lane
+    assert lane is not None and lane.hits > 80
+    # 300 exchanges with ticks: CHANGES replays, then 32, 64, 128 exchanges aside, and so on
+    assert lane.replays <= 5 * fastlane.CHANGES
+    assert lane._backoff > 2 * fastlane.BACKOFF  # more than once, each time for longer
