@@ -6,7 +6,7 @@ times ``xac1 decode --batch DIR --jobs 1`` and ``--jobs N`` (default: the cores)
 ``--rounds``, each as a child process (wall time, its output discarded). Prints frames/s and the ratio
 (issue 14: at least 1.8x on 2 cores).
 
-Run: ``python benchmarks/bench_decode_batch.py [--files 8] [--exchanges 50000] [--keep DIR]``.
+Run: ``python benchmarks/bench_decode_batch.py [--files 16] [--exchanges 25000] [--keep DIR]``.
 """
 
 from __future__ import annotations
@@ -52,8 +52,8 @@ def wall(cmd: list[str]) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--files", type=int, default=8)
-    ap.add_argument("--exchanges", type=int, default=50_000)
+    ap.add_argument("--files", type=int, default=16)
+    ap.add_argument("--exchanges", type=int, default=25_000)
     ap.add_argument("--jobs", type=int, default=len(os.sched_getaffinity(0)))
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--seed", type=int, default=1)

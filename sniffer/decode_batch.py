@@ -3,7 +3,8 @@
 How this works: each argument is a directory (its files, not recursive, hidden ones left out), a file, or
 a glob pattern; the files are decoded each on its own (exactly ``xac1 decode FILE``: the same format
 detection, options and summary), one process per file, at most ``--jobs`` at a time (default: the cores
-this process may run on), so an archive goes about as many times faster as there are cores. Printed in
+this process may run on), the largest files first, so an archive goes about as many times faster as there
+are cores. Printed in
 the order given: one row per file and a total (``--format jsonl``: a ``{"type":"file",...}`` line per file
 holding that file's summary record and exit status, then ``{"type":"total",...}``). Exit status: 2 when
 a file decoded nothing (missing, unknown format, no line data), else 1 when any file has violations or
@@ -97,6 +98,13 @@ def _row_text(name: str, fmt: str, r: dict[str, Any], exit_text: str) -> str:
             f"{r.get('junk', 0):>7} {violations:>10} {r.get('problems', 0):>8} {exit_text:>4}")
 
 
+def _size(path: str) -> int:
+    try:
+        return os.path.getsize(path)
+    except OSError:  # gone or unreadable: decoding it says so
+        return 0
+
+
 def run(args: argparse.Namespace, decode: Decode) -> int:
     """``xac1 decode --batch``: every file decoded by ``decode``, a process each up to ``--jobs``."""
     refused = [f"--{name.replace('_', '-')}" for name in _REFUSED if getattr(args, name, None)]
@@ -114,8 +122,11 @@ def run(args: argparse.Namespace, decode: Decode) -> int:
     if jobs == 1 or len(files) == 1:
         rows = [decode_one(f, args, decode) for f in files]
     else:
+        # the largest first (the processes then end about together); the rows in the order given
         with ProcessPoolExecutor(max_workers=min(jobs, len(files))) as pool:
-            rows = list(pool.map(decode_one, files, [args] * len(files), [decode] * len(files)))
+            futures = {k: pool.submit(decode_one, files[k], args, decode)
+                       for k in sorted(range(len(files)), key=lambda k: -_size(files[k]))}
+            rows = [futures[k].result() for k in range(len(files))]
     for row in rows:
         sys.stderr.write(row.pop(_MESSAGES))
     all_rows = rows + [total(rows)]
