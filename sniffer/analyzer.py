@@ -68,9 +68,13 @@ class Analyzer:
             raise RuntimeError("the analyzer is closed")
         if chunk.dir not in (HOST, DEVICE):
             raise ValueError(f"chunk direction must be 'host' or 'device', got {chunk.dir!r}")
-        if self.lane is not None:
-            return self.lane.feed(chunk)
-        return self._feed(chunk)
+        lane = self.lane
+        if lane is None:
+            return self._feed(chunk)
+        if lane.skip:  # the lane steps aside for a while (sniffer/fastlane.py, BACKOFF)
+            lane.skip -= 1
+            return self._feed(chunk)
+        return lane.feed(chunk)
 
     def feed_many(self, chunks: Iterator[Chunk], out: list[Record | CleanExchange], clean: bool = True,
                   limit: int = FEED_BATCH, lean: bool = False) -> int:
@@ -126,8 +130,9 @@ class Analyzer:
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
-        if self.lane is not None:
-            self.lane.full_path()
+        lane = self.lane
+        if lane is not None and not lane.skip:  # stepping aside, it holds and observes nothing
+            lane.full_path()
         return self._tick(now)
 
     def _tick(self, now: float) -> list[Record]:

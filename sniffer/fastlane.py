@@ -207,6 +207,8 @@ class Analyzer(Protocol):
     _device_since: float | None
     _device_last: float | None
 
+    def feed(self, chunk: Chunk) -> list[Record]: ...
+
     def _feed(self, chunk: Chunk) -> list[Record]: ...
 
 
@@ -244,7 +246,9 @@ class FastLane:
         self._held: Held | None = None
         self._observed: Observed | None = None
         self._changes = 0  # clean exchanges that changed the knowledge, none memoised or hit between
-        self._skip = 0  # chunks left to pass straight to the full path (``BACKOFF``)
+        # chunks the analyzer passes straight to the full path (``BACKOFF``): the lane steps aside; nothing
+        # is held or observed meanwhile, and the knowledge is taken as changed when it steps back
+        self.skip = 0
         self._backoff = BACKOFF  # the next time the lane steps aside, for this many chunks
         self._settled = 0  # exchanges since the knowledge last became a value without a kept memo
         self._ticked = 0  # commands held or observed that a tick cut off, none answered from the memo between
@@ -271,10 +275,6 @@ class FastLane:
                 out = a._feed(chunk)
             self._learn(observed, chunk, out, trace)
             return out
-        if self._skip:
-            self._skip -= 1
-            self._dirty = True
-            return a._feed(chunk)
         c = self._conversation
         t = chunk.t
         # the quiet state (framers' buffers read directly: ``pending`` is their length)
@@ -305,14 +305,14 @@ class FastLane:
         if held is not None or self._observed is not None:
             self._ticked += 1
             if self._ticked >= CHANGES:
-                self._ticked, self._skip = 0, self._backoff
+                self._ticked, self.skip = 0, self._backoff
                 self._backoff = min(2 * self._backoff, BACKOFF_MAX)
         self._observed = None
         self._dirty = True
 
     def can_stretch(self) -> bool:
         """Right after a hit (the state quiet, the memo current): may ``stretch`` go on inline?"""
-        return (self._held is None and self._observed is None and not self._skip and not self._dirty
+        return (self._held is None and self._observed is None and not self.skip and not self._dirty
                 and len(self.analyzer.tally._headers) < MAX_WAITING)
 
     def stretch(self, chunks: Iterator[Chunk], out: list[Record | CleanExchange], clean: bool, limit: int,
@@ -417,7 +417,7 @@ class FastLane:
                 self._changes, self._backoff, self._ticked = 0, BACKOFF, 0
                 self._count(touched, pairs)
             for chunk in rest:  # not an exchange from the memo (or the reader failed after it)
-                out += self.feed(chunk)
+                out += a.feed(chunk)
         return taken
 
     def _count(self, touched: list[tuple[FrameRecord, _Answer]], pairs: int) -> None:
@@ -666,9 +666,10 @@ class FastLane:
         if after != before:
             self._changes += 1
             if self._changes >= CHANGES:
-                self._changes, self._skip = 0, self._backoff
+                self._changes, self.skip = 0, self._backoff
                 self._backoff = min(2 * self._backoff, BACKOFF_MAX)
                 self._fresh(after)
+                self._dirty = True  # for when the lane steps back
                 return
             change = _Change(before, after)
         else:
