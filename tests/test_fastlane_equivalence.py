@@ -254,6 +254,8 @@ def bounds(values: dict[str, int]) -> Iterator[None]:
 @example([(("clean", 0), 0.0, 0.002, 0)] * 3 + [(("tick", 0), 0.0, 0.5, 0), (("clean", 0), 0.0, 1.0, 0)],
          True, None, {}, {})
 @example([(("clean", 1), 0.0, 0.002, 0)] * 3 + [(("silent", 1), 0.0, 0.002, 0)], True, 0.999999, {}, {})
+@example([(("clean", k), 0.01, 0.002, 0) for k in (3, 3, 3, 4, 4, 3, 4, 3)], True, None, {},
+         {"CHANGES": 1, "BACKOFF": 1})  # the lane steps aside and back: the knowledge changed meanwhile
 def test_fast_lane_gives_the_full_paths_records(items, timed, close_after, options, lane_bounds):
     ops = ops_of(items, timed)
     close_at = None if close_after is None else end_of(ops) + close_after
