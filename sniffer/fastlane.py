@@ -125,6 +125,20 @@ def _clone(template: FrameRecord, i: int, t: float | None, reply_to: int | None,
     return record
 
 
+_LATE: Final = object()
+
+
+def _latency(t_host: float | None, t: float | None, window: float) -> float | None | object:
+    """The latency of a memoised answer at ``t`` to its command at ``t_host`` (None: both untimed), or
+    ``_LATE`` when it is not in time as the full path would judge it: one timed and the other not, or
+    outside the window (the engine's deadline is ``t_host + window``, that very sum)."""
+    if t_host is None:
+        return _LATE if t is not None else None
+    if t is None or not t_host <= t <= t_host + window:
+        return _LATE
+    return t - t_host
+
+
 def knowledge_snapshot(k: Knowledge) -> tuple[Any, ...]:
     """The knowledge's value, frozen: every field but ``points`` (facts are immutable), then ``points``
     copied (the one mutable field)."""
@@ -566,17 +580,10 @@ class FastLane:
         answer = entry.answers.get(chunk.data)
         if answer is None:
             return None
-        template = answer.record
-        t_host, t = command.t, chunk.t
-        if t_host is None:
-            if t is not None:
-                return None
-            latency = None
-        elif t is None or not t_host <= t <= t_host + entry.window:  # the engine's deadline, its sum
+        latency = _latency(command.t, chunk.t, entry.window)
+        if latency is _LATE:
             return None
-        else:
-            latency = t - t_host
-        record = self._answered(command, chunk, template, i, latency)
+        record = self._answered(command, chunk, answer.record, i, latency)  # type: ignore[arg-type]
         change = answer.change
         if change is not None:
             change.apply(self._conversation.knowledge)
@@ -617,18 +624,13 @@ class FastLane:
         answer = entry.answer(chunk.data, c.knowledge)
         if answer is None:
             return None
-        t_host, t = command.t, chunk.t
-        if t_host is None:
-            if t is not None:
-                return None
-            latency = None
-        elif t is None or not t_host <= t <= t_host + entry.window:  # the engine's deadline, its sum
+        latency = _latency(command.t, chunk.t, entry.window)
+        if latency is _LATE:
             return None
-        else:
-            latency = t - t_host
+        t_host = command.t
         before = self._snap
         assert before is not None
-        record = self._answered(command, chunk, answer.record, i, latency)
+        record = self._answered(command, chunk, answer.record, i, latency)  # type: ignore[arg-type]
         self.reads.hits += 1
         answer.writes.apply(c.knowledge)
         self._settled += 1

@@ -241,10 +241,11 @@ BOUNDS = [{}, {}, {"CHANGES": 1, "BACKOFF": 1}, {"CHANGES": 2, "BACKOFF": 5, "BA
 
 
 @contextlib.contextmanager
-def bounds(values: dict[str, int]) -> Iterator[None]:
+def bounds(values: dict[str, int], module: Any = fastlane) -> Iterator[None]:
+    """The module's bounds (``fastlane``'s by default) set to these values for the block."""
     with contextlib.ExitStack() as stack:
         for name, value in values.items():
-            stack.enter_context(mock.patch.object(fastlane, name, value))
+            stack.enter_context(mock.patch.object(module, name, value))
         yield
 
 

@@ -11,10 +11,6 @@ knowledge memo cannot serve and this one must, with the memos' bounds small and 
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
-from unittest import mock
-
 import pytest
 import test_feed_many_equivalence as bulk
 from hypothesis import given, settings
@@ -86,14 +82,6 @@ def ops_of(items: list[tuple[int, str, float, float]], timed: bool) -> list[Op]:
         else:
             t += 1.5
     return ops
-
-
-@contextlib.contextmanager
-def reads_bounds(values: dict[str, int]) -> Iterator[None]:
-    with contextlib.ExitStack() as stack:
-        for name, value in values.items():
-            stack.enter_context(mock.patch.object(readset, name, value))
-        yield
 
 
 def _mixed(n: int, every: int = 7) -> list[tuple[int, str, float, float]]:
@@ -189,7 +177,7 @@ def test_the_reads_memo_gives_the_full_paths_records(items, timed, close_after, 
                                                       memo_bounds):
     ops = ops_of(items, timed)
     close_at = None if close_after is None else end_of(ops) + close_after
-    with bounds(lane_bounds), reads_bounds(memo_bounds):
+    with bounds(lane_bounds), bounds(memo_bounds, readset):
         assert_same(ops, close_at, options)
 
 
@@ -200,7 +188,7 @@ def test_the_reads_memo_in_bulk_gives_the_full_paths_records(items, timed, close
                                                              memo_bounds, clean, batch):
     ops = ops_of(items, timed)
     close_at = None if close_after is None else end_of(ops) + close_after
-    with bounds(lane_bounds), reads_bounds(memo_bounds):
+    with bounds(lane_bounds), bounds(memo_bounds, readset):
         bulk.assert_same(ops, close_at, {}, clean, batch)
 
 
