@@ -41,8 +41,17 @@ from peak_rss import run_measuring_peak_rss  # noqa: E402
 CHILD_ENV = {k: v for k, v in os.environ.items() if k not in ("PYTHONDONTWRITEBYTECODE", "PYTHONUNBUFFERED")}
 
 
-def run(cmd: list[str]) -> tuple[float, float]:
-    """(wall seconds, peak RSS MiB) of one child process; its output is discarded."""
+def warm(path: Path) -> None:
+    """Read the file once, so that each command reads it from the page cache (a virtual machine may drop
+    a file's pages within a minute: the first reader after that would also pay for the disk)."""
+    with open(path, "rb") as f:
+        while f.read(1 << 20):
+            pass
+
+
+def run(cmd: list[str], path: Path) -> tuple[float, float]:
+    """(wall seconds, peak RSS MiB) of one child process reading ``path``; its output is discarded."""
+    warm(path)
     t0 = time.perf_counter()
     code, peak_mib = run_measuring_peak_rss(cmd, env=CHILD_ENV)
     wall = time.perf_counter() - t0
@@ -70,8 +79,10 @@ def library_path(path: Path, fmt: str) -> tuple[float, float]:
     fmt = "pcap" if fmt == "pcapng" else fmt
     with_reader = []
     for _ in range(3):
+        warm(path)
         with Capture([str(path)], fmt) as capture:
             with_reader.append(analyze(capture))
+    warm(path)
     with Capture([str(path)], fmt) as capture:
         chunks = list(capture)
     return min(with_reader), min(analyze(chunks) for _ in range(3))
@@ -105,14 +116,14 @@ def main(argv: list[str] | None = None) -> int:
             if fmt == "pcapng" and tshark:
                 lua, proto, field = args.dissector
                 wall, rss = run([tshark, "-r", str(path), "-X", f"lua_script:{lua}", "-d",
-                                 f"rtacser.data,{proto}", "-T", "fields", "-e", field])
+                                 f"rtacser.data,{proto}", "-T", "fields", "-e", field], path)
                 peer = wall
                 rows.append((kind, fmt, "tshark + Lua", n / wall, mb / wall, rss, 1.0))
             for label, extra in (("decode summary", ["--format", "summary"]),
                                  ("decode jsonl", ["--format", "jsonl"]),
                                  ("decode text", [])):
                 wall, rss = run([xac1, "decode", str(path), "--no-progress", *extra]
-                                if _has_no_progress(xac1) else [xac1, "decode", str(path), *extra])
+                                if _has_no_progress(xac1) else [xac1, "decode", str(path), *extra], path)
                 ratio = None if peer is None else peer / wall
                 rows.append((kind, fmt, label, n / wall, mb / wall, rss, ratio))
             for label, wall in zip(("library + reader", "library path"), library_path(path, fmt),
