@@ -40,7 +40,7 @@ class Ann:
     COMMAND, ANSWER, HOST_JUNK, DEVICE_JUNK, FIELDS, VIOLATION, NOTICE, UART_ERROR = range(8)
 
 
-class Decoder(srd.Decoder):  # type: ignore[misc]
+class Decoder(srd.Decoder):
     api_version = 3
     id = "xac1"
     name = "XA-C1"
@@ -85,8 +85,8 @@ class Decoder(srd.Decoder):  # type: ignore[misc]
     def start(self) -> None:
         self.out_ann = self.register(srd.OUTPUT_ANN)
         self.out_python = self.register(srd.OUTPUT_PYTHON)
-        # sigrok sets ``options`` to the chosen values by id; the UART decoder's RX is 0, TX 1
-        self.host_rxtx = 1 if self.options["host"] == "tx" else 0  # type: ignore[call-overload]
+        chosen: dict[str, Any] = self.options  # type: ignore[assignment]  # sigrok: the values by id
+        self.host_rxtx = 1 if chosen["host"] == "tx" else 0  # the UART decoder's RX is 0, TX 1
 
     def metadata(self, key: int, value: Any) -> None:
         if key == srd.SRD_CONF_SAMPLERATE:
