@@ -27,7 +27,7 @@ from typing import Any
 import sigrokdecode as srd  # type: ignore[import-not-found]
 
 from . import tables as T
-from .checks import Event, Framer, codes, diagnose, fields_text, meaning, shown
+from .checks import Event, Framer, codes, diagnose, escape, fields_text, meaning, shown
 
 HOST, DEVICE = "host", "device"
 FRAMING_ERROR = "UART framing error"
@@ -130,7 +130,8 @@ class Decoder(srd.Decoder):
         role = T.COMMAND if side == HOST else T.ANSWER
         if event.reason is not None:
             cls = Ann.HOST_JUNK if side == HOST else Ann.DEVICE_JUNK
-            self.put(ss, es, self.out_ann, [cls, [f"{shown(event.raw)} junk ({event.reason})", "junk"]])
+            self.put(ss, es, self.out_ann, [cls, [f"{escape(event.raw)} {side} junk ({event.reason})",
+                                                  f"{escape(event.raw)} junk", "junk"]])
             self.put(ss, es, self.out_ann, [Ann.VIOLATION, ["garbage"]])
             self.put(ss, es, self.out_python, ["JUNK", side, {
                 "raw": event.raw, "reason": event.reason, "violations": ["garbage"],
