@@ -70,7 +70,7 @@ def test_tables_carry_every_header_length_range_alarm_and_code():
     assert {v.code: (v.severity, v.duty, v.meaning) for v in spec.VIOLATION_SPECS} == tables.VIOLATIONS
     assert tables.CHECK_ORDER == spec.CHECK_ORDER
     init = pdgen.generate()["__init__.py"]
-    assert "`xac1 decode` of a sigrok-cli UART export" in init
+    assert "`xac1 decode` of sigrok-cli's UART export" in init
     assert all(code in init for code in pdgen.frame_level_codes())
 
 

@@ -111,7 +111,8 @@ def _package() -> str:
             + "frame-level violations of docs/protocol.md\n" + codes + "\n"
             + "\n"
             + "Conversation rules (pairing, no-answer, latching, storms...) are not judged here:\n"
-            + "`xac1 decode` of a sigrok-cli UART export (-A uart=rx-data:tx-data) gives them.\n"
+            + "`xac1 decode` of sigrok-cli's UART export of the same capture gives them (see xac1-proto's\n"
+            + "docs/sigrok.md).\n"
             + '"""\n'
             + "\n"
             + "from .pd import Decoder  # noqa: F401\n")

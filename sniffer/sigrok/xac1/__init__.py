@@ -8,7 +8,8 @@ frame-level violations of docs/protocol.md
 garbage, reserved-alarm, unknown-alarm).
 
 Conversation rules (pairing, no-answer, latching, storms...) are not judged here:
-`xac1 decode` of a sigrok-cli UART export (-A uart=rx-data:tx-data) gives them.
+`xac1 decode` of sigrok-cli's UART export of the same capture gives them (see xac1-proto's
+docs/sigrok.md).
 """
 
 from .pd import Decoder  # noqa: F401
