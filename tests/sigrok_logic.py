@@ -60,15 +60,18 @@ class Capture:
 
 def converse(script: list[tuple[float, bytes] | tuple[float, bytes, frozenset[int]]],
              config: SimConfig | None = None, device_bad: dict[int, frozenset[int]] | None = None,
-             device_split: dict[int, float] | None = None) -> Capture:
+             device_split: dict[int, float] | None = None, alarms: dict[int, int] | None = None) -> Capture:
     """Play the host's writes ``(t, bytes[, bad byte indexes])`` against the simulator; its answers go
     on the device line when due. ``device_bad``: answer number -> indexes of its bytes to damage;
-    ``device_split``: answer number -> a pause (s) in the middle of that answer."""
+    ``device_split``: answer number -> a pause (s) in the middle of that answer; ``alarms``: step number
+    -> an alarm the device raises just before that step."""
     model = DeviceModel(config or SimConfig(time_scale=0))
     cap = Capture()
     answers = 0
-    for step in script:
+    for number, step in enumerate(script):
         t, data = step[0], step[1]
+        if alarms and number in alarms:
+            model.raise_alarm(alarms[number], t)
         bad = step[2] if len(step) == 3 else frozenset()  # type: ignore[misc]
         end = cap.host.send(t, data, bad)
         for out in model.receive(data, end):

@@ -5,6 +5,7 @@ UART decoder's export of the same capture): frames, meanings, fields, frame-leve
 
 from __future__ import annotations
 
+import ast
 import os
 import re
 import subprocess
@@ -57,6 +58,8 @@ def sessions() -> dict[str, Capture]:
         "garbling-device": converse(CLEAN + [(0.60 + 0.05 * k, b"0RP1\r\n") for k in range(8)],
                                     SimConfig(time_scale=0, deviations=frozenset({"wrong-length"}),
                                               faults=LineFaults(corrupt=0.03, seed=11))),
+        # alarms the device raises: one the vendor lists with no meaning (reserved-alarm), an emergency stop
+        "alarming-device": converse(CLEAN[:6], alarms={1: 0x03, 3: 0x0B, 5: 0x0E}),
         # bytes damaged on the wire: a host command's third byte, an answer's first and fifth bytes
         "uart-framing-error": converse([*CLEAN[:2], (0.10, CLEAN[2][1], frozenset({2})), *CLEAN[3:]],
                                        device_bad={3: frozenset({0, 4}), 6: frozenset({1})}),
@@ -242,9 +245,11 @@ def test_annotations_equal_decode_records_frame_by_frame(name, env, tmp_path):
 
 def test_sessions_hold_what_their_names_say(env, tmp_path):
     """The captures are what the comparison needs: the sloppy host's every frame-level fault, a faulty
-    device's, UART framing errors on both lines, a junk run left by an answer's long pause."""
+    device's, a reserved alarm, UART framing errors on both lines, a junk run left by an answer's long
+    pause."""
     seen: dict[str, Counter[str]] = {}
-    for name in ("sloppy-host", "faulty-device", "garbling-device", "uart-framing-error", "split-frames"):
+    for name in ("sloppy-host", "faulty-device", "garbling-device", "alarming-device", "uart-framing-error",
+                 "split-frames"):
         vcd = write_vcd(tmp_path / f"{name}.vcd", SESSIONS[name])
         records = decode_records(vcd, tmp_path, env)
         seen[name] = Counter(c for r in records for c in r.get("violations", []))
@@ -255,6 +260,7 @@ def test_sessions_hold_what_their_names_say(env, tmp_path):
             "unknown-command", "garbage", "alarm-ignored", "overlapping-command"} <= set(seen["sloppy-host"])
     assert {"missing-2", "bad-length", "echo-mismatch"} <= set(seen["faulty-device"])
     assert {"bad-length", "garbage"} <= set(seen["garbling-device"])
+    assert "reserved-alarm" in seen["alarming-device"]
     assert {"line:host", "line:device"} <= set(seen["uart-framing-error"])
     assert "reason:flushed" in seen["split-frames"]
 
@@ -277,9 +283,65 @@ def test_done_when_sloppy_host_names_every_frame_level_violation_and_no_other(en
     assert "0RP3 command: read movement data of point N" in shown and "N=3" in shown
 
 
+PROBE = """\"\"\"A test decoder stacked on xac1: each packet of its Python output as an annotation.\"\"\"
+import sigrokdecode as srd
+
+
+class Decoder(srd.Decoder):
+    api_version = 3
+    id = "xac1probe"
+    name = "XA-C1 probe"
+    longname = "XA-C1 output probe (tests)"
+    desc = "Shows what the XA-C1 decoder passes on."
+    license = "mit"
+    inputs = ["xac1"]
+    outputs = []
+    annotations = (("packet", "Packet"),)
+
+    def reset(self):
+        pass
+
+    def start(self):
+        self.out_ann = self.register(srd.OUTPUT_ANN)
+
+    def decode(self, ss, es, data):
+        kind, side, fields = data
+        self.put(ss, es, self.out_ann, [0, [repr((kind, side, sorted(fields.items())))]])
+"""
+
+
+@pytest.mark.parametrize("name", ["sloppy-host", "uart-framing-error"])
+def test_python_output_feeds_a_stacked_decoder(name, env, tmp_path):
+    """A decoder stacked on xac1 gets one packet a frame or junk run, over its samples: the bytes, role,
+    header, fields, frame-level codes and UART errors that xac1 decode's records hold."""
+    probe = Path(env["XDG_DATA_HOME"]) / "libsigrokdecode" / "decoders" / "xac1probe"
+    probe.mkdir(exist_ok=True)
+    (probe / "__init__.py").write_text(PROBE.split("import", 1)[0] + "from .pd import Decoder  # noqa\n")
+    (probe / "pd.py").write_text(PROBE)
+    vcd = write_vcd(tmp_path / f"{name}.vcd", SESSIONS[name])
+    got = {}
+    for a in annotations(vcd, env, "xac1", "xac1probe"):
+        kind, side, items = ast.literal_eval(a.text)
+        got.setdefault(side, []).append((kind, dict(items)))
+    want: dict[str, list] = {}
+    for r in decode_records(vcd, tmp_path, env):
+        if r["type"] == "frame":
+            role = spec.COMMAND if r["dir"] == spec.HOST_SIDE else spec.ANSWER
+            want.setdefault(r["dir"], []).append(("FRAME", {
+                "raw": bytes.fromhex(r["raw"]), "role": role, "header": r["header"],
+                "meaning": _meaning(r["header"], role, r["fields"]), "fields": r["fields"],
+                "violations": [c for c in r["violations"] if c not in CONVERSATION_CODES],
+                "uart_errors": list(dict.fromkeys(r.get("line_errors", [])))}))
+        elif r["type"] == "junk":
+            want.setdefault(r["dir"], []).append(("JUNK", {
+                "raw": bytes.fromhex(r["raw"]), "reason": r["reason"], "violations": ["garbage"],
+                "uart_errors": list(dict.fromkeys(r.get("line_errors", [])))}))
+    assert got == want
+
+
 def test_host_option_picks_the_line(env, tmp_path):
     """``host=rx``: with the lines wired the other way round the decoder shows the same annotations."""
-    vcd = write_vcd(tmp_path / "clean.vcd", SESSIONS["sloppy-host"])
+    vcd = write_vcd(tmp_path / "sloppy.vcd", SESSIONS["sloppy-host"])
     default = sigrok("-i", str(vcd), "-P", f"{UART},xac1", "-A", "xac1", env=env)
     swapped = sigrok("-i", str(vcd), "-P", "uart:baudrate=9600:rx=host:tx=device,xac1:host=rx", "-A", "xac1",
                      env=env)
