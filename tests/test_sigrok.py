@@ -191,7 +191,8 @@ def test_install_is_idempotent_and_uninstall_removes_only_ours(tmp_path):
     inst.install(folder)
     (folder / "notes.txt").write_text("mine\n")
     done = inst.uninstall(folder)
-    assert f"{folder / 'notes.txt'}: not ours, left as it is" in done
+    assert done == [f"decoder xac1 removed from {folder} (the folder stays: it holds files not ours)",
+                    f"{folder / 'notes.txt'}: not ours, left as it is"]
     assert [p.name for p in folder.iterdir()] == ["notes.txt"]
     assert inst.uninstall(tmp_path / "none") == [f"nothing of xac1 was installed there ({tmp_path / 'none'} "
                                                  f"does not exist)"]

@@ -133,5 +133,8 @@ def uninstall(folder: Path) -> list[str]:
             folder.rmdir()
         except OSError as exc:
             raise InstallError(f"cannot remove {folder}: {exc.strerror or exc}") from None
-    done.insert(0, f"decoder xac1 removed: {folder}")
+    if theirs:
+        done.insert(0, f"decoder xac1 removed from {folder} (the folder stays: it holds files not ours)")
+    else:
+        done.insert(0, f"decoder xac1 removed: {folder}")
     return done
