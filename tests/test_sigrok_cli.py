@@ -357,6 +357,23 @@ def test_listed_with_its_description(env):
     assert "xac1 decode" in info.stdout and "host" in info.stdout, info.stdout
 
 
+def test_install_into_home_without_xdg_data_home(tmp_path):
+    """Without XDG_DATA_HOME the decoder goes to ~/.local/share/libsigrokdecode/decoders, where sigrok-cli
+    finds it; a second install changes nothing; --uninstall takes it away and sigrok-cli no longer
+    lists it."""
+    env = {k: v for k, v in os.environ.items() if k != "XDG_DATA_HOME"}
+    env["HOME"] = str(tmp_path)
+    folder = tmp_path / ".local/share/libsigrokdecode/decoders/xac1"
+    assert xac1("sigrok", "install", env=env).returncode == 0
+    assert re.search(r"^\s+xac1\s", sigrok("-L", env=env).stdout, re.M)
+    again = xac1("sigrok", "install", env=env)
+    assert again.returncode == 0 and f"{folder} (already up to date)" in again.stdout
+    assert f"xac1:     {folder}" in xac1("sigrok", "path", env=env).stdout
+    assert xac1("sigrok", "install", "--uninstall", env=env).returncode == 0
+    assert not folder.exists()
+    assert not re.search(r"^\s+xac1\s", sigrok("-L", env=env).stdout, re.M)
+
+
 def test_install_into_a_read_only_folder(tmp_path):
     """A decoders folder that cannot be written: exit 1 and a message naming it, no traceback, nothing
     written. Root writes into read-only folders, so as root the folder is made immutable (chattr +i)."""
