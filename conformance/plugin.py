@@ -264,6 +264,8 @@ def bad_options(c: pytest.Config) -> str | None:
 
 def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | None:
     """Why an output file cannot be written (checked before anything is sent), else None."""
+    from xac1_proto.output_file import OutputFileError, check_output
+
     from .report import kind_of
 
     for name, path, kinds in (("report", report, ("md", "html")), ("junit", junit, ("xml",))):
@@ -279,6 +281,10 @@ def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | Non
             return f"{flag(name)} {path}: the directory {parent} does not exist"
         if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
             return f"{flag(name)} {path}: not writable (permission denied)"
+        try:  # through a link, to its target; never a FIFO or a device
+            check_output(path, flag(name))
+        except OutputFileError as exc:
+            return str(exc)
     return None
 
 
@@ -516,8 +522,8 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         if path:
             try:
                 writer(Path(path), rep)
-            except OSError as exc:
-                problems.append(f"could not write {path}: {exc.strerror or exc}")
+            except (OSError, ValueError) as exc:  # ValueError: OutputFileError, it is no longer a file
+                problems.append(f"could not write {path}: {getattr(exc, 'strerror', None) or exc}")
     run.verdict_line = rep.verdict_line
     status = rep.exit_status(c.getoption("xac1_allow_incomplete"))
     if run.total == 0:
