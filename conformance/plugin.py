@@ -233,7 +233,7 @@ def _activate(run: Xac1Run) -> None:
     run.command_line = c.getoption("xac1_command_line")
     from .stopping import StopPolicy
 
-    run.policy = StopPolicy("xac1 conformance" if run.settings.cli else "xac1 plugin").install()
+    run.policy = StopPolicy.shared("xac1 conformance" if run.settings.cli else "xac1 plugin")  # one a process
     if c.pluginmanager.get_plugin("terminalreporter") is None:
         from .progress import Progress
 
@@ -345,6 +345,8 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     progress = run.progress if run is not None and is_check(item) else None
     if progress is not None:
         progress.check(Path(str(item.path)).stem.removeprefix("test_"), item.name.removeprefix("test_"))
+    if run is not None and run.policy is not None and is_check(item):
+        run.policy.raise_if_lost()  # a signal whose raise a check swallowed stops the run here
     try:
         return (yield)
     except KeyboardInterrupt:  # a signal (stopping.Interrupted) cut this check short: no verdict on it
@@ -506,8 +508,10 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         return
     if run.policy is not None:
         run.policy.ending("the device is being restored; the report follows")
-    if exitstatus == pytest.ExitCode.INTERRUPTED and not run.abort:
-        run.interrupted_by = (run.policy.interrupted_by if run.policy is not None else None) or "SIGINT"
+    stopped_by = run.policy.stopped_by if run.policy is not None else None  # even if its raise was lost
+    if (exitstatus == pytest.ExitCode.INTERRUPTED or stopped_by) and not run.abort:
+        run.interrupted_by = stopped_by or (run.policy.interrupted_by if run.policy is not None else None) \
+            or "SIGINT"
         run.abort = f"interrupted ({run.interrupted_by}) before every check ran"
     if run.dut is not None and not run.restored:
         _finish(run)
