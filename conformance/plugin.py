@@ -49,6 +49,7 @@ class Xac1Run:
         self.config = config
         self.settings: Any = None
         self.dut: Any = None
+        self.opened: Any = None  # the device opened before the first check, until the fixture takes it
         self.snapshot: Any = None
         self.restore_report: Any = None
         self.restored = False
@@ -335,8 +336,24 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     run.total_info = sum(1 for i in checks if i.get_closest_marker("xac1_info"))
     run.collected = [(i.nodeid, i.name.removeprefix("test_"), i.get_closest_marker("xac1_info") is not None)
                      for i in checks]
+    if checks and not _open_early(run):  # a port that does not open is known before the first check
+        session.items[:] = [i for i in session.items if not is_check(i)]
+        return
     if run.progress is not None:
-        run.progress.begin(run.total)
+        run.progress.begin(run.total, run.total_info)
+
+
+def _open_early(run: Xac1Run) -> bool:
+    """Open the device before the first check (the session fixture takes it); False, with the run's
+    abort saying why, when the port does not open: no check is then started (nothing was sent)."""
+    from .dut import DeviceUnderTest
+
+    try:
+        run.opened = DeviceUnderTest.open(run.settings)
+    except Exception as exc:  # noqa: BLE001 - a port that does not open ends the run, with the reason
+        run.abort = f"cannot open {run.settings.port}: {exc}"
+        return False
+    return True
 
 
 @pytest.hookimpl(wrapper=True)
@@ -378,8 +395,9 @@ def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
 
     run = _run(request.config)
     assert run is not None
+    dut, run.opened = run.opened, None  # opened before the first check (pytest_collection_finish)
     try:
-        dut = DeviceUnderTest.open(xac1_settings)
+        dut = dut or DeviceUnderTest.open(xac1_settings)
     except Exception as exc:  # noqa: BLE001 - a port that does not open ends the run, with the reason
         raise DeviceAbort(f"cannot open {xac1_settings.port}: {exc}") from None
     run.dut = dut
@@ -515,6 +533,10 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         run.abort = f"interrupted ({run.interrupted_by}) before every check ran"
     if run.dut is not None and not run.restored:
         _finish(run)
+    if run.opened is not None:  # opened, never used (every check left out or stopped before)
+        with contextlib.suppress(Exception):
+            run.opened.close()
+        run.opened = None
     if run.interrupted_by is None and run.policy is not None and run.policy.interrupted_by:
         run.interrupted_by = run.policy.interrupted_by  # a signal during the restore: ignored, but said
     from .report import build, terminal_lines, write_file
