@@ -4,8 +4,9 @@ How it works: importing this module costs nothing beyond pytest itself; every ho
 unless the run uses an ``--xac1-*`` option or collects the checks of ``conformance.checks``. Then the
 options become a ``Settings`` (bad values stop the run with a usage error), the checks are ordered
 (power-on checks first, the random-sequence check last) and those the settings forbid are skipped with
-the reason. The first check that needs the device opens it and snapshots the points and OUT ports; every
-check starts with any latched alarm reset. Each check's outcome becomes a ``Result`` with the rule from
+the reason. The device is opened before the first check (a port that does not open: no check starts);
+the first that needs it snapshots the points and OUT ports; every check starts with any latched alarm
+reset. Each check's outcome becomes a ``Result`` with the rule from
 its docstring and the probes as evidence. A ``DeviceAbort`` (no port, no answer, emergency stop) is no
 verdict on the check that met it: the run stops, the rest count as not run, exit status 3. A check whose
 last probe got no byte back is followed at once by the liveness check, so a device that stopped

@@ -70,10 +70,14 @@ class StopPolicy:
         """The policy already in place in this process (``xac1 conformance`` installs one before pytest
         starts), so that a run has one first signal; else a new one, installed. Uninstall it once."""
         current = _in_place[-1] if _in_place else None
-        if current is not None and current._previous:
-            current._users += 1
-            return current
+        if current is not None and signal.getsignal(signal.SIGINT) == current._handle:
+            return current.take()
         return cls(program).install()
+
+    def take(self) -> StopPolicy:
+        """One more holder of this installed policy (``shared``); each holder uninstalls once."""
+        self._users += 1
+        return self
 
     @property
     def signal_name(self) -> str | None:

@@ -130,3 +130,17 @@ def test_sim_refuses_a_fifo_state_file_before_it_starts(tmp_path: Path) -> None:
     done = xac1("sim", "--pty", "--state", str(fifo), timeout=20)
     assert done.returncode == 2 and f"--state {fifo}" in done.stderr and "a FIFO" in done.stderr
     assert stat.S_ISFIFO(fifo.stat().st_mode) and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("command", ["sniff", "proxy"])
+def test_sniff_and_proxy_refuse_a_fifo_report_before_opening_anything(tmp_path: Path, command: str,
+                                                                       capsys) -> None:
+    """``xac1 sniff``/``xac1 proxy --report FIFO``: exit 2 naming the path before any port is opened (the
+    ports named here do not exist: the report's error comes first); the FIFO is left alone."""
+    fifo = odd(tmp_path, "fifo")
+    ports = (["--host-tap", str(tmp_path / "no-tap-1"), "--device-tap", str(tmp_path / "no-tap-2")]
+             if command == "sniff" else ["--device", str(tmp_path / "no-device"), "--tcp", "127.0.0.1:0"])
+    assert main([command, *ports, "--report", str(fifo)]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot write the report {fifo}" in err and "a FIFO" in err and "no-" not in err
+    assert stat.S_ISFIFO(fifo.stat().st_mode)
