@@ -74,6 +74,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", metavar="FILE", help="record every byte both ways: FILE.pcapng for "
                         "Wireshark (with verdicts), else our JSON lines recording")
     parser.add_argument("--estop", action="store_true", help="start with the emergency stop input on")
+    parser.add_argument("--replay", action="append", metavar="CAPTURE", default=None,
+                        help="answer as the captured device did: any capture xac1 decode reads (give it "
+                             "twice for formats with one file per direction); lines the capture does not "
+                             "hold next are answered by the model")
+    parser.add_argument("--replay-strict", action="store_true",
+                        help="with --replay: a line the capture does not hold next gets no answer")
+    parser.add_argument("--replay-format", metavar="FORMAT", default="auto",
+                        help="with --replay: the capture's format (default: sniffed, as xac1 decode)")
+    parser.add_argument("--replay-host-is", metavar="SIDE", default=None,
+                        help="with --replay: which side of the capture is the host (as decode's --host-is)")
     parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                         help="any simulator option (the xac1sim:// query options), e.g. accept_lowercase=1")
 
@@ -142,6 +152,7 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
     from ..errors import XAC1Error
     from .config import DEVIATIONS, config_from_options
     from .model import DeviceModel
+    from .replaying import ReplayingDevice, load_script
     from .runner import serve_pty, serve_tcp
     from .state import load_state, save_state
 
@@ -151,13 +162,23 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
         return EXIT_OK
     if args.link and not args.pty:
         return _fail("--link goes with --pty")
+    replaying = args.replay is not None
+    if not replaying and (args.replay_strict or args.replay_format != "auto" or args.replay_host_is):
+        return _fail("--replay-strict, --replay-format and --replay-host-is go with --replay CAPTURE")
     try:
         config = config_from_options(_options(args))
         address = _tcp_address(args.tcp) if args.tcp else None
         points = load_state(args.state) if args.state else {}
+        script = load_script(args.replay, args.replay_format, args.replay_host_is) if replaying else None
     except (ValueError, XAC1Error) as exc:
         return _fail(str(exc))
-    model = DeviceModel(config, points)
+    if script is not None:
+        model: DeviceModel = ReplayingDevice(script, config, strict=args.replay_strict, points=points,
+                                             on_note=_say_replay)
+        print(f"xac1 sim: replaying {len(script)} captured host lines of {', '.join(args.replay)}"
+              f"{' (strict)' if args.replay_strict else ''}", file=sys.stderr, flush=True)
+    else:
+        model = DeviceModel(config, points)
     if args.estop:
         model.set_estop(True)
 
@@ -223,6 +244,11 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
                 print(f"xac1 sim: error: cannot write the log {args.log}: {exc}", file=sys.stderr)
                 died = True
     return EXIT_FAILED if died or save_errors else EXIT_OK
+
+
+def _say_replay(note: str) -> None:
+    """A line the capture does not hold next (from the simulator's loop): said on stderr at once."""
+    print(f"xac1 sim: replay: {note}", file=sys.stderr, flush=True)
 
 
 def _reason(error: BaseException | None) -> str:
