@@ -8,8 +8,9 @@ played by ``sniffer.replay_player`` under the motion guard (``sniffer.replay_gua
 are printed (``--format text``/``jsonl``) and, with ``--report``, written as a page
 (``sniffer.replay_report``).
 
-Exit status: 0 every answer the same; 1 some differ (or a line was skipped); 2 bad options or capture
-(nothing sent); 3 the device could not be reached or stopped answering.
+Exit status: 0 every captured host line replayed and every answer the same; 1 some differ, or a line
+was skipped, or a signal ended the replay early; 2 bad options or capture (nothing sent); 3 the device
+could not be reached or stopped answering.
 """
 
 from __future__ import annotations
@@ -68,8 +69,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="show what would be sent (and skipped); open no port, send nothing")
     p.add_argument("--timeout", type=_seconds, metavar="S", default=None,
-                   help="answer window after a line's last byte, moves' estimated time doubled on top "
-                        "(default 1, as xac1 decode)")
+                   help="no-answer timeout after a line's last byte (moves' estimated time doubled on "
+                        "top), for reading the capture and judging the new conversation, as xac1 decode "
+                        "--timeout (default 1; 0.2 against xac1sim://)")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text output (default: when the output is a terminal)")
 
@@ -105,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
     except SettingsError as exc:
         return _error(str(exc))
     try:
-        captured = read_script(args.files, args.input_format, args.host_is, args.samplerate, PROGRAM)
+        captured = read_script(args.files, args.input_format, args.host_is, args.samplerate, PROGRAM,
+                               args.timeout)
     except CaptureError as exc:
         return _error(f"{exc}; nothing sent")
     for note in captured.report.notes:
@@ -216,8 +219,8 @@ def _conclude(args: argparse.Namespace, script: Script, fmt: str, results: list[
     summary["stopped"] = bool(player and player.stopped) or failure is not None
     summary["interrupted"] = signal
     summary["restored"] = None if restored is None else restored.ok
-    status = EXIT_DEVICE if summary["stopped"] else EXIT_SAME if summary["same"] == len(results) \
-        else EXIT_DIFFERENT
+    every = summary["same"] == len(script.lines)  # every line replayed (none skipped, none left) and same
+    status = EXIT_DEVICE if summary["stopped"] else EXIT_SAME if every else EXIT_DIFFERENT
     summary["exit"] = status
     out.write(summary)
     if failure is not None:

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import serial
 
+from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.replay import Answer, CapturedLine, Comparison, Script, compare
 from xac1_proto.signals import StopRequest
@@ -124,7 +125,8 @@ class Player:
         if before.t_sent is None:  # the line before was skipped: no answer to wait for
             return
         overlap = not line.after_answer and bool(previous.answers)
-        if line.after_answer or (self.pace == FAST and not overlap):
+        partial = not previous.raw.endswith(spec.FRAME_END)  # no LF: nothing can answer it alone
+        if line.after_answer or (self.pace == FAST and not overlap and not partial):
             self._pump_until(lambda: self._settled(line.n - 1))
         gap = min(line.gap_s or 0.0, MAX_GAP_S) if self.pace == CAPTURED else 0.0
         if gap:
@@ -139,9 +141,12 @@ class Player:
         return len(result.got) >= wanted or not self._owed(n)
 
     def _owed(self, n: int) -> bool:
-        """Is line ``n`` still owed an answer by the engine (sent, its window open)?"""
+        """Is line ``n`` still owed an answer by the engine (sent, its window open)? Bytes the analyzer
+        has not framed yet (line noise with no LF waits for what follows) are owed one window."""
         if self._host_seen < self._host_bytes:
-            return True  # the analyzer has not framed every byte sent yet: too early to tell
+            sent = self.results[n].t_sent
+            window = self.analyzer.conversation.no_answer_timeout
+            return sent is not None and self.clock() < sent + window
         return self.analyzer.waiting
 
     def _pump_until(self, done: Callable[[], bool]) -> None:

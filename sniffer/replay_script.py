@@ -40,8 +40,11 @@ class CapturedScript:
 
 
 def read_script(files: Sequence[str], input_format: str = "auto", host_is: str | None = None,
-                samplerate: float | None = None, program: str = "xac1 replay") -> CapturedScript:
-    """Read ``files`` as one capture; CaptureError when nothing can be replayed from them."""
+                samplerate: float | None = None, program: str = "xac1 replay",
+                no_answer_timeout: float | None = None) -> CapturedScript:
+    """Read ``files`` as one capture; CaptureError when nothing can be replayed from them.
+    ``no_answer_timeout``: the analyzer's (as ``xac1 decode --timeout``): which line a late answer
+    belongs to depends on it."""
     report = Report()
     sources: list[Source] = []
     args = argparse.Namespace(input_format=input_format, host_is=host_is, samplerate=samplerate)
@@ -52,7 +55,7 @@ def read_script(files: Sequence[str], input_format: str = "auto", host_is: str |
             raise CaptureError(f"{sources[0].name} holds one line direction only: give the other "
                                f"direction's file too (a replay needs both)")
         with Capture(sources, fmt, host_is=host_is, samplerate=samplerate, report=report) as capture:
-            analyzer = Analyzer()
+            analyzer = Analyzer() if no_answer_timeout is None else Analyzer(no_answer_timeout)
             records: list[Record] = []
             for chunk in capture:
                 report.give_up_after = None

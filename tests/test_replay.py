@@ -97,9 +97,9 @@ lines_strategy = st.lists(st.tuples(
 @settings(max_examples=60)
 @given(lines_strategy)
 def test_script_keeps_every_line_its_answers_and_their_timing(conversation):
-    """Every host line is kept in order, byte for byte, with the answers paired with it and each answer's
-    delay after the line's last byte; a line sent after the previous answer ended gets the gap from
-    that answer's end."""
+    """Every host line is kept in order, byte for byte, with the answers paired with it, the same bytes
+    as its replies (they came before the next line) with each one's delay after the line's last byte; a
+    line sent after the previous answer ended gets the gap from that answer's end."""
     builder = ScriptBuilder()
     t = 100.0
     expected = []
@@ -120,7 +120,8 @@ def test_script_keeps_every_line_its_answers_and_their_timing(conversation):
     assert [line.raw for line in script.lines] == [raw for raw, _, _ in expected]
     for line, (_, _, made) in zip(script.lines, expected, strict=True):
         assert line.answers == tuple(a for a, _ in made)
-        assert line.delays == pytest.approx([d for _, d in made])
+        assert [a for a, _ in line.replies] == [a for a, _ in made]
+        assert [d for _, d in line.replies] == pytest.approx([d for _, d in made])
     for before, line in zip(script.lines, script.lines[1:], strict=False):
         assert line.after_answer == bool(before.answers)
         if line.after_answer:
@@ -140,6 +141,29 @@ def test_an_overlap_is_kept_as_an_overlap():
     first, second = builder.build().lines
     assert not second.after_answer and second.gap_s == pytest.approx(0.006)
     assert [a.raw for a in first.answers] == [b"0RV100\r\n"]
+
+
+def test_a_late_answer_is_replied_after_the_line_it_followed():
+    """An answer the engine paired with a line but that came only after the next line was sent is that
+    line's answer (for the comparison) and the next line's reply (the device side keeps the captured
+    timeline: the host meets it after its second line, as it did)."""
+    builder = ScriptBuilder()
+    builder.host(0, b"0XX\r\n", 1.0, 1.005)
+    builder.host(1, b"0RS\r\n", 1.4, 1.405)
+    builder.device(answer(b"0%%01\r\n", 1.41), 0)
+    first, second = builder.build().lines
+    assert [a.raw for a in first.answers] == [b"0%%01\r\n"] and first.replies == ()
+    assert second.answers == () and [(a.raw, d) for a, d in second.replies] == [
+        (b"0%%01\r\n", pytest.approx(0.005))]
+
+
+def test_without_time_the_replies_are_the_answers():
+    """A capture without time (raw files): the device side replies with the engine's pairing."""
+    builder = ScriptBuilder()
+    builder.host(0, b"0RV\r\n")
+    builder.device(answer(b"0RV100\r\n"), 0)
+    (line,) = builder.build().lines
+    assert line.replies == ((line.answers[0], None),)
 
 
 def test_unpaired_device_bytes_go_to_the_last_line_sent_before_them():

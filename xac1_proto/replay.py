@@ -5,7 +5,8 @@ rulebook pairs each answer with its host line); it hands the result to ``ScriptB
 at a time (``host`` for every host frame or junk run, ``device`` for every device frame or junk run, with
 the host line it answers when the engine paired it). ``build()`` gives a ``Script``: the host lines in
 order, byte for byte (malformed lines and line noise included), each with the device bytes that answered
-it and how long after its last byte they came, and how it was paced: sent after the previous line's
+it (for the comparison), the device bytes that followed it in time and how long after its last byte
+they came (for the device side), and how it was paced: sent after the previous line's
 answer had ended (``after_answer``, ``gap_s`` from that answer's last byte) or not (back to back, an
 overlap, after a silence: ``gap_s`` from the previous line's first byte). Device bytes the engine paired
 with no line belong to the last line sent before them (a late answer stays late); those before any line
@@ -24,6 +25,7 @@ No clock, no port: times come in as numbers.
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final
@@ -60,9 +62,12 @@ class Answer:
 @dataclass(frozen=True, slots=True)
 class CapturedLine:
     """One host line of the capture and what the device did. ``n``: its place among the host lines;
-    ``i``: its record number in the capture (``xac1 decode``'s ``i``); ``delays``: for each answer, from
-    this line's last byte to the answer's first byte (None without time); ``after_answer``/``gap_s``: the
-    pacing (module docstring)."""
+    ``i``: its record number in the capture (``xac1 decode``'s ``i``); ``answers``: the device bytes the
+    engine paired with it (what a replay compares); ``replies``: the device bytes that came after it and
+    before the next line, each with its delay from this line's last byte (None without time): what the
+    device side sends back, so the host meets the captured timeline (a late answer to an earlier line
+    comes after the line it followed); without time, the answers. ``after_answer``/``gap_s``: the pacing
+    (module docstring)."""
 
     n: int
     i: int
@@ -70,7 +75,7 @@ class CapturedLine:
     t: float | None
     t_last: float | None
     answers: tuple[Answer, ...] = ()
-    delays: tuple[float | None, ...] = ()
+    replies: tuple[tuple[Answer, float | None], ...] = ()
     after_answer: bool = False
     gap_s: float | None = None
 
@@ -102,6 +107,7 @@ class ScriptBuilder:
         self._lines: list[_Open] = []
         self._by_i: dict[int, _Open] = {}
         self._lead: list[Answer] = []
+        self._device: list[Answer] = []  # every device run in the order seen
 
     def host(self, i: int, raw: bytes, t: float | None = None, t_last: float | None = None) -> None:
         """A host frame or junk run, record number ``i``."""
@@ -111,6 +117,7 @@ class ScriptBuilder:
 
     def device(self, answer: Answer, reply_to: int | None = None) -> None:
         """Device bytes; ``reply_to``: the host line's record number the engine paired them with."""
+        self._device.append(answer)
         line = self._by_i.get(reply_to) if reply_to is not None else None
         if line is None:
             line = self._lines[-1] if self._lines else None
@@ -120,14 +127,38 @@ class ScriptBuilder:
             line.answers.append(answer)
 
     def build(self) -> Script:
+        replies = self._replies()
         out: list[CapturedLine] = []
         for n, line in enumerate(self._lines):
-            delays = tuple(None if a.t is None or line.t_last is None else max(0.0, a.t - line.t_last)
-                           for a in line.answers)
             after, gap = _pace(self._lines[n - 1] if n else None, line)
-            out.append(CapturedLine(n, line.i, line.raw, line.t, line.t_last, tuple(line.answers), delays,
+            timed = tuple((a, _delay(line, a)) for a in replies[n])
+            out.append(CapturedLine(n, line.i, line.raw, line.t, line.t_last, tuple(line.answers), timed,
                                     after, gap))
         return Script(tuple(out), tuple(self._lead))
+
+    def _paired(self) -> list[list[Answer]]:
+        return [line.answers for line in self._lines]
+
+    def _replies(self) -> list[list[Answer]]:
+        """The device runs after each line and before the next, by time; by the engine's pairing when
+        the capture has no time."""
+        lines = self._lines
+        if any(line.t is None for line in lines) or any(a.t is None for a in self._device):
+            return self._paired()
+        starts = [line.t for line in lines if line.t is not None]
+        out: list[list[Answer]] = [[] for _ in lines]
+        for answer in self._device:
+            assert answer.t is not None
+            k = bisect_right(starts, answer.t) - 1
+            if k >= 0:
+                out[k].append(answer)
+        return out
+
+
+def _delay(line: _Open, answer: Answer) -> float | None:
+    if answer.t is None or line.t_last is None:
+        return None
+    return max(0.0, answer.t - line.t_last)
 
 
 def _pace(previous: _Open | None, line: _Open) -> tuple[bool, float | None]:
@@ -202,7 +233,7 @@ class Match:
 
     @property
     def answers(self) -> tuple[tuple[Answer, float | None], ...]:
-        return tuple(pair for line in self.lines for pair in zip(line.answers, line.delays, strict=True))
+        return tuple(pair for line in self.lines for pair in line.replies)
 
 
 class ScriptCursor:
