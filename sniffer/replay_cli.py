@@ -90,7 +90,7 @@ def _settings(args: argparse.Namespace) -> Settings:
     if args.allow_motion and args.safe_range is None:
         raise SettingsError("--allow-motion needs --safe-range LO:HI: the positions the actuator may be "
                             "moved to (e.g. --safe-range 0:0x1000)")
-    port = args.port or "xac1sim://"
+    port = args.port or "(no port: dry run)"  # judged as a real device: moves only when allowed
     return Settings.make(port, args.allow_motion, fresh=False, safe_range=args.safe_range,
                          timeout=args.timeout, restore_mode0=args.restore_mode0, cli=True)
 
