@@ -19,12 +19,13 @@ import argparse
 import json
 import math
 import sys
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final, TextIO
 
 from .capture_args import add_capture_arguments
 
 if TYPE_CHECKING:
-    from conformance.safety import RestoreReport
+    from conformance.safety import RestoreReport, Snapshot
     from conformance.settings import Settings
     from xac1_proto.replay import Answer, Script
 
@@ -177,23 +178,79 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
                   file=sys.stderr)
             return EXIT_EARLY
         end.begin()
-        player: Player | None = None
+        analyzer = Analyzer(no_answer_timeout=settings.timeout, fast=False)
+        guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge,
+                            {n: p.pos for n, p in snap.points.items()}, homed=snap.position is not None)
+        player = Player(port, script, analyzer, pace=args.pace, check=guard.check, alive=lambda: _alive(dut),
+                        stop=end.stop)
         failure: str | None = None
+        port_failed = False
         try:
-            homed = snap.position is not None
-            points = {n: p.pos for n, p in snap.points.items()}
-            analyzer = Analyzer(no_answer_timeout=settings.timeout, fast=False)
-            guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge, points, homed)
-            player = Player(port, script, analyzer, pace=args.pace, check=guard.check,
-                            alive=lambda: _alive(dut), stop=end.stop)
-            results = player.run()
-        except PortFailed as exc:
-            failure = str(exc)
-            results = [r for r in player.results if r.t_sent is not None or r.skipped] if player else []
+            player.run()
+        except PortFailed as exc:  # nothing more can be sent: no restore
+            failure, port_failed = str(exc), True
+        except Exception as exc:  # noqa: BLE001 - a bug must not leave the device changed: restore, say it
+            failure = f"the replay stopped: {type(exc).__name__}: {exc}"
         end.ending()
-        restored = restore(dut, snap) if failure is None else None
+        restored = None if port_failed else restore(dut, snap)
         port.close()
-    return _conclude(args, script, fmt, results, player, restored, failure, end.signal_name)
+        outcome = Outcome(player.played, _restore_lines(restored, player.played, snap),
+                          None if restored is None else restored.ok, player.stopped or port_failed, failure,
+                          end.signal_name)
+    return _conclude(args, script, fmt, outcome)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How a replay went: the lines played, what the restore did (``restored``: verified; None: not
+    done), whether the device stopped answering (or the port failed), why it stopped early (``failure``),
+    the signal that ended it."""
+
+    results: list[LineResult]
+    restore: list[str]
+    restored: bool | None
+    stopped: bool
+    failure: str | None
+    signal: str | None
+
+
+def _restore_lines(restored: RestoreReport | None, results: list[LineResult], snap: Snapshot) -> list[str]:
+    """What the restore did; where it could not be done or verified, what the replay sent that may have
+    changed the device, with the values it had before."""
+    if restored is None:
+        return ["not done (the port failed)", *_changes_by_replay(results, snap)]
+    lines = restored.lines + restored.warnings + restored.problems
+    if restored.unverified:
+        lines += [restored.unverified[0], *_changes_by_replay(results, snap)]
+    return lines
+
+
+def _changes_by_replay(results: list[LineResult], snap: Snapshot) -> list[str]:
+    from xac1_proto import spec
+    from xac1_proto.codec import diagnose
+    from xac1_proto.frames import MoveDirect, MovePoint, StoreCurrent, SwitchMode, WriteOutputs, WritePoint
+
+    points: set[int] = set()
+    outputs = moved = mode = False
+    for r in results:
+        if r.t_sent is None:
+            continue
+        command, _ = diagnose(r.line.raw, spec.COMMAND)  # a sloppy line a device may still carry out
+        if isinstance(command, (WritePoint, StoreCurrent)) and command.n in snap.points:
+            points.add(command.n)
+        outputs = outputs or isinstance(command, WriteOutputs)
+        moved = moved or isinstance(command, (MovePoint, MoveDirect))
+        mode = mode or isinstance(command, SwitchMode)
+    out = [f"not verified: point {n:X}, written by the replay; it held {snap.points[n].show()} before"
+           for n in sorted(points)]
+    if outputs:
+        out.append(f"not verified: the OUT ports, written by the replay; they were {snap.outputs} before")
+    if moved:
+        out.append(f"not verified: the axis position, moved by the replay; 0RC read {snap.position_seen} "
+                   f"before")
+    if mode:
+        out.append("not verified: the mode, switched by the replay (0CM)")
+    return out or ["the replay sent nothing that changes the device (no write, no move, no 0CM)"]
 
 
 def _alive(dut: Any) -> bool:
@@ -210,36 +267,32 @@ def _alive(dut: Any) -> bool:
     return False
 
 
-def _conclude(args: argparse.Namespace, script: Script, fmt: str, results: list[LineResult],
-              player: Any, restored: RestoreReport | None, failure: str | None, signal: str | None) -> int:
+def _conclude(args: argparse.Namespace, script: Script, fmt: str, outcome: Outcome) -> int:
+    """Print the results, the summary, what the restore did; write the page; the exit status."""
     out = _Output(args, sys.stdout)
+    results = outcome.results
     for r in results:
         out.result(r)
     summary = _summary(results, len(script.lines))
-    summary["stopped"] = bool(player and player.stopped) or failure is not None
-    summary["interrupted"] = signal
-    summary["restored"] = None if restored is None else restored.ok
+    summary.update(stopped=outcome.stopped, interrupted=outcome.signal, restored=outcome.restored)
     every = summary["same"] == len(script.lines)  # every line replayed (none skipped, none left) and same
-    status = EXIT_DEVICE if summary["stopped"] else EXIT_SAME if every else EXIT_DIFFERENT
+    status = EXIT_DEVICE if outcome.stopped else EXIT_SAME if every else EXIT_DIFFERENT
     summary["exit"] = status
     out.write(summary)
-    if failure is not None:
-        print(f"{PROGRAM}: {failure}", file=sys.stderr)
-    elif player is not None and player.stopped:
+    if outcome.failure is not None:
+        print(f"{PROGRAM}: {outcome.failure}", file=sys.stderr)
+    elif outcome.stopped:
         from .replay_player import STOPPED_LIMIT
 
         print(f"{PROGRAM}: the device stopped answering: {summary['replayed']} lines sent, the last "
               f"{STOPPED_LIMIT} answered in the capture got not a byte back, nor did 0RV", file=sys.stderr)
-    if restored is not None:
-        for line in restored.lines + restored.warnings + restored.problems + restored.unverified:
-            print(f"{PROGRAM}: restore: {line}", file=sys.stderr)
-    else:
-        print(f"{PROGRAM}: restore: not done (the port failed); check the device by hand", file=sys.stderr)
+    for line in outcome.restore:
+        print(f"{PROGRAM}: restore: {line}", file=sys.stderr)
     if args.report:
         from .replay_report import write_report
 
         try:
-            written = write_report(args.report, args.files, fmt, results, summary, restored)
+            written = write_report(args.report, args.files, fmt, results, summary, outcome.restore)
         except OSError as exc:
             print(f"{PROGRAM}: cannot write the report {args.report}: {exc.strerror or exc}",
                   file=sys.stderr)

@@ -108,6 +108,11 @@ class Player:
                 self.stopped = True
                 break
         self._finish()
+        return self.played
+
+    @property
+    def played(self) -> list[LineResult]:
+        """The lines sent or skipped so far (all of them unless the replay was cut short)."""
         return [r for r in self.results if r.t_sent is not None or r.skipped is not None]
 
     def _stopping(self) -> bool:

@@ -18,8 +18,6 @@ from xac1_proto.pages import render
 from .report.page import write_page
 
 if TYPE_CHECKING:
-    from conformance.safety import RestoreReport
-
     from .replay_player import LineResult
 
 
@@ -28,21 +26,19 @@ def _show(answers: Sequence[Any]) -> str:
 
 
 def context(files: Sequence[str], fmt: str, results: Sequence[LineResult], summary: dict[str, Any],
-            restored: RestoreReport | None) -> dict[str, Any]:
+            restored: Sequence[str]) -> dict[str, Any]:
     rows = [{"i": r.line.i, "sent": show_bytes(r.line.raw), "expected": _show(r.line.answers),
              "got": _show(r.got), "same": r.same, "skipped": r.skipped,
              "differences": list(r.comparison.differences),
              "violations": list(dict.fromkeys(r.violations))} for r in results]
-    restore_lines = [] if restored is None else \
-        restored.lines + restored.warnings + restored.problems + restored.unverified
     return {"title": "XA-C1 replay report", "sources": [(f, fmt) for f in files], "rows": rows,
-            "summary": summary, "restore": restore_lines,
+            "summary": summary, "restore": list(restored),
             "generated": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")}
 
 
 def write_report(path: str | os.PathLike[str], files: Sequence[str], fmt: str,
-                 results: Sequence[LineResult], summary: dict[str, Any],
-                 restored: RestoreReport | None) -> str:
-    """Render and write the page; returns the path written (OSError when it cannot be)."""
+                 results: Sequence[LineResult], summary: dict[str, Any], restored: Sequence[str]) -> str:
+    """Render and write the page (``restored``: what the restore did, line by line); returns the path
+    written (OSError when it cannot be)."""
     write_page(path, render("replay.html.j2", **context(files, fmt, results, summary, restored)))
     return os.fspath(path)

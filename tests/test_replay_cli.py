@@ -110,3 +110,32 @@ def test_dry_run_shows_what_would_be_sent_and_opens_no_port(capsys):
     assert [o["line"] for o in objs[:-1]] == ["0RV\r\n", "0RC\r\n", "0WP19302012345\r\n", "ORP1\r\n",
                                               "0RS\r\n", "0%C\r\n", "0RP1\r\n", "0RV\r\n", "0RV\r\n"]
     assert objs[-1] == {"type": "summary", "dry_run": True, "lines": 9, "would_send": 9, "skipped": 0}
+
+
+@pytest.mark.slow
+def test_a_device_that_stops_answering_mid_replay_is_exit_3(capsys, tmp_path):
+    """Lines answered in the capture that now get not a byte back, three in a row, and a 0RV that gets
+    none either: the replay stops (exit 3), says so, and the restore is reported as not verified."""
+    from xac1_proto.chunk import Chunk
+    from xac1_proto.recording import RecordingWriter
+    from xac1_proto.sim import LineFaults, SimConfig, serve_tcp
+
+    capture = tmp_path / "cm1.jsonl"
+    with RecordingWriter(capture) as w:
+        for n, (line, answer) in enumerate([(b"0CM1\r\n", b"0CM1\r\n")] + [(b"0RV\r\n", b"0RV100\r\n")] * 6):
+            w.write(Chunk(10.0 + n, "host", line))
+            w.write(Chunk(10.0 + n + 0.01, "device", answer))
+
+    def mute_after_0cm1(direction: str, data: bytes) -> None:
+        if direction == "host" and b"0CM1" in data:
+            sim.model.set_line_faults(LineFaults(drop=1.0))  # from now on every answer byte is lost
+
+    with serve_tcp(SimConfig(time_scale=0), on_traffic=mute_after_0cm1) as sim:
+        status, objs, err = replay(capsys, str(capture), "--port", sim.url, "--pace", "fast", "--timeout",
+                                   "0.2", "-f", "jsonl")
+    assert status == 3, err
+    assert "the device stopped answering" in err
+    assert "restore: the restore could not be done or verified" in err
+    assert "restore: not verified: the mode, switched by the replay (0CM)" in err
+    summary = objs[-1]
+    assert summary["stopped"] is True and summary["restored"] is False and summary["replayed"] < 7
