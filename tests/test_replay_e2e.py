@@ -201,9 +201,12 @@ def test_device_side_replayed_gives_the_same_records(tmp_path):
 
 def test_sim_replay_reports_lines_not_in_the_capture(tmp_path):
     """``xac1 sim --replay``: a line the capture does not hold next is answered by the model and said on
-    stderr; the control channel's ``replay`` says where the replay stands."""
+    stderr and in the sim's log (a note line the readers skip); the control channel's ``replay`` says
+    where the replay stands."""
     original = record(SESSION[:2], tmp_path / "short.jsonl", SimConfig(time_scale=0))
-    with xac1_sim("--tcp", "127.0.0.1:0", "--replay", str(original), "--time-scale", "0") as (sim, url):
+    log = tmp_path / "sim.jsonl"
+    with xac1_sim("--tcp", "127.0.0.1:0", "--replay", str(original), "--time-scale", "0", "--log",
+                  str(log)) as (sim, url):
         port = int(url.rpartition(":")[2])
         got = play(("127.0.0.1", port), [(b"0RV\r\n", 1), (b"0RS\r\n", 1)])
         assert sim.stdin is not None and sim.stdout is not None
@@ -216,6 +219,10 @@ def test_sim_replay_reports_lines_not_in_the_capture(tmp_path):
     assert got == [b"0RV100\r\n", b"0RS02\r\n"]  # the second from the model
     assert where.startswith("replay: 1 of 2 captured host lines passed")
     assert "xac1 sim: replay: '0RS' CR LF is not in the rest of the capture: answered by the model" in err
+    notes = [json.loads(line) for line in log.read_text().splitlines() if '"note"' in line]
+    assert len(notes) == 1 and "'0RS' CR LF is not in the rest of the capture" in notes[0]["text"]
+    r = xac1("decode", str(log))
+    assert r.returncode == 0 and "problem" not in r.stderr, r.stderr
 
 
 # ---- motion ----

@@ -125,3 +125,21 @@ def test_xac1sim_url_replays_the_faulty_device():
         serial.serial_for_url(url + "&replay_strict=yes")
     with pytest.raises(serial.SerialException, match="go with replay=CAPTURE"):
         serial.serial_for_url("xac1sim://?replay_strict=1")
+
+
+def test_a_note_in_a_recording_is_skipped_by_its_readers(tmp_path):
+    """The sim's log takes replay notes as ``{"type":"note"}`` lines; reading the recording gives its
+    chunks only, with no problem."""
+    from xac1_proto.chunk import Chunk
+    from xac1_proto.recording import RecordingWriter, read_recording
+
+    path = tmp_path / "log.jsonl"
+    with RecordingWriter(path) as w:
+        w.write(Chunk(1.0, "host", b"0RV\r\n"))
+        w.note("replay: '0RS' CR LF is not in the rest of the capture", 1.5)
+        w.write(Chunk(2.0, "device", b"0RV100\r\n"))
+    problems: list[str] = []
+    lines = path.read_text().splitlines()
+    assert '"type":"note"' in lines[2]
+    chunks = list(read_recording(iter(lines), str(path), problems))
+    assert [c.data for c in chunks] == [b"0RV\r\n", b"0RV100\r\n"] and problems == []

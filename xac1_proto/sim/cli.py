@@ -174,7 +174,7 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
         return _fail(str(exc))
     if script is not None:
         model: DeviceModel = ReplayingDevice(script, config, strict=args.replay_strict, points=points,
-                                             on_note=_say_replay)
+                                             on_note=lambda note: _say_replay(note, writer))
         print(f"xac1 sim: replaying {len(script)} captured host lines of {', '.join(args.replay)}"
               f"{' (strict)' if args.replay_strict else ''}", file=sys.stderr, flush=True)
     else:
@@ -246,9 +246,13 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
     return EXIT_FAILED if died or save_errors else EXIT_OK
 
 
-def _say_replay(note: str) -> None:
-    """A line the capture does not hold next (from the simulator's loop): said on stderr at once."""
+def _say_replay(note: str, log: ChunkWriter | None) -> None:
+    """A line the capture does not hold next (from the simulator's loop): said on stderr at once, and in
+    the ``--log`` recording when it takes notes (our JSON lines recording does)."""
     print(f"xac1 sim: replay: {note}", file=sys.stderr, flush=True)
+    take_note = getattr(log, "note", None)
+    if take_note is not None:
+        take_note(f"replay: {note}")
 
 
 def _reason(error: BaseException | None) -> str:
