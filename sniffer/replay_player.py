@@ -135,7 +135,9 @@ class Player:
             self._pump_until(lambda: self._settled(line.n - 1))
         gap = min(line.gap_s or 0.0, MAX_GAP_S) if self.pace == CAPTURED else 0.0
         if gap:
-            start = self.clock() if line.after_answer else before.t_sent
+            answered = before.got[-1].t_last if before.got else None
+            start = (answered if answered is not None else self.clock()) if line.after_answer \
+                else before.t_sent
             deadline = start + gap
             self._pump_until(lambda: self.clock() >= deadline)
 
