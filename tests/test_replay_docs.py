@@ -31,7 +31,10 @@ def test_the_page_has_runnable_examples():
     assert any("--report" in line for line in RUNNABLE) and any("--dry-run" in line for line in RUNNABLE)
 
 
-@pytest.mark.parametrize("command", RUNNABLE)
+# at the captured pace the gallery session takes seconds (its silent 0RV waits 1.4 s): slow
+@pytest.mark.parametrize("command", [
+    pytest.param(c, marks=pytest.mark.slow) if "--pace fast" not in c and "--dry-run" not in c else c
+    for c in RUNNABLE])
 def test_replay_example_runs_as_documented(command, tmp_path, monkeypatch):
     """Pasted in the repository (here: a folder whose ``captures`` is the repository's), the command
     ends with the documented status: 1 for the gallery's faulty device against the clean simulator, 0
