@@ -72,7 +72,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=_seconds, metavar="S", default=None,
                    help="no-answer timeout after a line's last byte (moves' estimated time doubled on "
                         "top), for reading the capture and judging the new conversation, as xac1 decode "
-                        "--timeout (default 1; 0.2 against xac1sim://)")
+                        "--timeout (default 1; the new conversation with xac1sim://: 0.2)")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text output (default: when the output is a terminal)")
 
@@ -140,7 +140,7 @@ def _dry_run(args: argparse.Namespace, settings: Settings, script: Script) -> in
         skipped += why is not None
         out.would(line, why)
         analyzer.feed(Chunk(line.t, HOST, line.raw))
-        for answer in line.answers:
+        for answer, _ in line.replies:  # in the order they came
             analyzer.feed(Chunk(answer.t, DEVICE, answer.raw))
     out.write({"type": "summary", "dry_run": True, "lines": len(script.lines),
                "would_send": len(script.lines) - skipped, "skipped": skipped})
