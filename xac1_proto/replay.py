@@ -130,7 +130,7 @@ class ScriptBuilder:
         replies = self._replies()
         out: list[CapturedLine] = []
         for n, line in enumerate(self._lines):
-            after, gap = _pace(self._lines[n - 1] if n else None, line)
+            after, gap = _pace(self._lines[n - 1] if n else None, replies[n - 1] if n else [], line)
             timed = tuple((a, _delay(line, a)) for a in replies[n])
             out.append(CapturedLine(n, line.i, line.raw, line.t, line.t_last, tuple(line.answers), timed,
                                     after, gap))
@@ -161,15 +161,14 @@ def _delay(line: _Open, answer: Answer) -> float | None:
     return max(0.0, answer.t - line.t_last)
 
 
-def _pace(previous: _Open | None, line: _Open) -> tuple[bool, float | None]:
-    """Was ``line`` sent after ``previous``'s answer had ended, and the gap from there (or from the
-    previous line's first byte when it was not)."""
+def _pace(previous: _Open | None, heard: list[Answer], line: _Open) -> tuple[bool, float | None]:
+    """Was ``line`` sent after the device had answered ``previous`` (``heard``: the device bytes between
+    the two), and the gap from the end of those bytes (or from the previous line's first byte when
+    nothing came between: back to back, an overlap, a silence)."""
     if previous is None:
         return False, None
-    before = [a for a in previous.answers
-              if a.t is None or line.t is None or (a.t_last if a.t_last is not None else a.t) <= line.t]
-    if before and len(before) == len(previous.answers):
-        last = before[-1]
+    if heard:
+        last = heard[-1]
         end = last.t_last if last.t_last is not None else last.t
         return True, None if end is None or line.t is None else max(0.0, line.t - end)
     if previous.t is None or line.t is None:
