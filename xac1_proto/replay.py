@@ -6,9 +6,9 @@ at a time (``host`` for every host frame or junk run, ``device`` for every devic
 the host line it answers when the engine paired it). ``build()`` gives a ``Script``: the host lines in
 order, byte for byte (malformed lines and line noise included), each with the device bytes that answered
 it (for the comparison), the device bytes that followed it in time and how long after its last byte
-they came (for the device side), and how it was paced: sent after the previous line's
-answer had ended (``after_answer``, ``gap_s`` from that answer's last byte) or not (back to back, an
-overlap, after a silence: ``gap_s`` from the previous line's first byte). Device bytes the engine paired
+they came (for the device side), and how it was paced: sent after the device had answered the previous
+line (``after_answer``, ``gap_s`` from the last of those bytes) or not (back to back, an overlap, after
+a silence: ``gap_s`` from the previous line's first byte). Device bytes the engine paired
 with no line belong to the last line sent before them (a late answer stays late); those before any line
 are the script's ``lead``.
 
@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from typing import Final
 
 from . import spec
+from .codec import show_bytes
 from .frames import AlarmAnswer, Frame
 
 SAME: Final = "same"
@@ -280,8 +281,6 @@ class ScriptCursor:
 
 
 def _show(raw: bytes) -> str:
-    from .codec import show_bytes
-
     return show_bytes(raw)
 
 
