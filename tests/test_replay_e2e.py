@@ -316,3 +316,28 @@ def test_device_restored_after_a_signal_mid_replay(tmp_path, signum):
     assert summary["interrupted"] == signal.Signals(signum).name and summary["restored"] is True
     assert summary["replayed"] == 2 and proc.returncode == 1, err
     assert "point 1 restored" in err and "OUT ports restored to 1" in err
+
+
+@pytest.mark.requires_tool("chromium")
+def test_replay_page_in_chromium(tmp_path):
+    """The ``--report`` page opens in real headless Chromium with no console error and no request; its
+    table holds one row per captured host line, the differing ones marked with what differs, as the
+    JSON lines say."""
+    from session_report_browser import Browser
+
+    page_path = tmp_path / "replay.html"
+    status, objs, err = replay(ROOT / "captures" / "recording.jsonl", "xac1sim://?time_scale=0", "--pace",
+                               "fast", "--report", str(page_path))
+    assert status == 1, err
+    browser = Browser()
+    try:
+        page = browser.open(page_path)
+        rows = page.evaluate("""[...document.querySelectorAll('#replay tr')].slice(1).map(
+            tr => [tr.className, tr.cells[4].textContent.trim()])""")
+        assert page.problems() == [] and page.requests() == []
+        page.close()
+    finally:
+        browser.close()
+    expected = [["same" if o["same"] else "different", "same" if o["same"] else ", ".join(o["differences"])]
+                for o in objs[:-1]]
+    assert rows == expected
