@@ -139,3 +139,18 @@ def test_a_device_that_stops_answering_mid_replay_is_exit_3(capsys, tmp_path):
     assert "restore: not verified: the mode, switched by the replay (0CM)" in err
     summary = objs[-1]
     assert summary["stopped"] is True and summary["restored"] is False and summary["replayed"] < 7
+
+
+@pytest.mark.slow
+def test_a_device_that_never_answers_is_exit_3_nothing_of_the_capture_sent(capsys):
+    """A port that opens but gives not a byte back to the first reads (the snapshot): exit 3 with a
+    message; none of the capture's lines is sent."""
+    from xac1_proto.sim import LineFaults, SimConfig, serve_tcp
+
+    host: list[bytes] = []
+    with serve_tcp(SimConfig(time_scale=0, faults=LineFaults(drop=1.0)),
+                   on_traffic=lambda d, data: host.append(data) if d == "host" else None) as sim:
+        status, objs, err = replay(capsys, RECORDING, "--port", sim.url, "--timeout", "0.2")
+    assert status == 3 and "cannot read the device's points, OUT ports and position first" in err
+    assert "no answer from the device" in err and objs == []
+    assert set(host) <= {b"0%C\r\n", b"0RV\r\n"}  # the liveness check only: 0WP1... never went out

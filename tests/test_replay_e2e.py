@@ -341,3 +341,19 @@ def test_replay_page_in_chromium(tmp_path):
     expected = [["same" if o["same"] else "different", "same" if o["same"] else ", ".join(o["differences"])]
                 for o in objs[:-1]]
     assert rows == expected
+
+
+def test_sim_replay_on_a_pty(tmp_path):
+    """``xac1 sim --pty --replay``: host software opening the pseudo-terminal with pyserial meets the
+    captured faulty device (the gallery's: the 0WP echo with another position, the bare-LF answer,
+    the silent 0RV)."""
+    import serial
+
+    capture = str(ROOT / "captures" / "recording.jsonl")
+    got = []
+    with xac1_sim("--pty", "--replay", capture, "--time-scale", "0") as (_, path), \
+            serial.Serial(path, 9600, timeout=0.5) as port:
+        for line in (b"0RV\r\n", b"0RC\r\n", b"0WP19302012345\r\n", b"0RP1\r\n", b"0RV\r\n"):
+            port.write(line)
+            got.append(port.read_until(b"\n"))
+    assert got == [b"0RV100\r\n", b"0RC00002FFFFFF\r\n", b"0WP19302012344\r\n", b"0RP19302012345\n", b""]
