@@ -181,14 +181,16 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
         analyzer = Analyzer(no_answer_timeout=settings.timeout, fast=False)
         guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge,
                             {n: p.pos for n, p in snap.points.items()}, homed=snap.position is not None)
+        out = _Output(args, sys.stdout)
         player = Player(port, script, analyzer, pace=args.pace, check=guard.check, alive=lambda: _alive(dut),
-                        stop=end.stop)
+                        stop=end.stop, on_result=out.result)
         failure: str | None = None
         port_failed = False
         try:
             player.run()
         except PortFailed as exc:  # nothing more can be sent: no restore
             failure, port_failed = str(exc), True
+            player.close()
         except Exception as exc:  # noqa: BLE001 - a bug must not leave the device changed: restore, say it
             failure = f"the replay stopped: {type(exc).__name__}: {exc}"
         end.ending()
@@ -197,7 +199,7 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
         outcome = Outcome(player.played, _restore_lines(restored, player.played, snap),
                           None if restored is None else restored.ok, player.stopped or port_failed, failure,
                           end.signal_name)
-    return _conclude(args, script, fmt, outcome)
+    return _conclude(args, script, fmt, outcome, out)
 
 
 @dataclass(frozen=True)
@@ -267,12 +269,10 @@ def _alive(dut: Any) -> bool:
     return False
 
 
-def _conclude(args: argparse.Namespace, script: Script, fmt: str, outcome: Outcome) -> int:
-    """Print the results, the summary, what the restore did; write the page; the exit status."""
-    out = _Output(args, sys.stdout)
+def _conclude(args: argparse.Namespace, script: Script, fmt: str, outcome: Outcome, out: _Output) -> int:
+    """Print the summary (the lines went out as they were played) and what the restore did; write the
+    page; the exit status."""
     results = outcome.results
-    for r in results:
-        out.result(r)
     summary = _summary(results, len(script.lines))
     summary.update(stopped=outcome.stopped, interrupted=outcome.signal, restored=outcome.restored)
     every = summary["same"] == len(script.lines)  # every line replayed (none skipped, none left) and same

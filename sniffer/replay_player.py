@@ -60,11 +60,14 @@ class LineResult:
 class Player:
     """Plays ``script`` on ``port`` (an open pyserial port); ``analyzer`` judges the new conversation
     (its answer window is the wait for an answer). ``check(raw)``: the motion guard (None or why
-    not). ``alive()``: asked after ``STOPPED_LIMIT`` silent lines; False ends the replay (``stopped``)."""
+    not). ``alive()``: asked after ``STOPPED_LIMIT`` silent lines; False ends the replay (``stopped``).
+    ``on_result``: each line's result in order, as soon as nothing more can change it (before the next
+    line is sent, when nothing is owed; else at the end)."""
 
     def __init__(self, port: serial.Serial, script: Script, analyzer: Analyzer | None = None, *,
                  pace: str = CAPTURED, check: Callable[[bytes], str | None] | None = None,
                  alive: Callable[[], bool] | None = None, stop: StopRequest | None = None,
+                 on_result: Callable[[LineResult], None] | None = None,
                  clock: Callable[[], float] = time.monotonic) -> None:
         if pace not in PACES:
             raise ValueError(f"pace must be one of {', '.join(PACES)}, got {pace!r}")
@@ -74,6 +77,7 @@ class Player:
         self.check = check or (lambda raw: None)
         self.alive = alive
         self.stop = stop
+        self.on_result = on_result
         self.clock = clock
         self.analyzer = analyzer or Analyzer(fast=False)
         self.results = [LineResult(line) for line in script.lines]
@@ -86,6 +90,7 @@ class Player:
         self._line_of_i: dict[int, int] = {}  # live record number -> line number
         self._last_sent: int | None = None
         self._silent_run = 0
+        self._final = 0  # lines before this one are compared and handed to ``on_result``
 
     # ---- the run ----
 
@@ -103,6 +108,8 @@ class Player:
             if why is not None:
                 result.skipped = why
                 continue
+            if not self.analyzer.waiting and self._host_seen == self._host_bytes:
+                self._settle(line.n)  # nothing is owed: what came so far is all the earlier lines get
             self._send(line)
             if self._answer_missing_run(line) and not self._still_there():
                 self.stopped = True
@@ -197,10 +204,24 @@ class Player:
                 self._read()
                 if self.analyzer.bytes_in(DEVICE) != seen:
                     seen, quiet_from = self.analyzer.bytes_in(DEVICE), self.clock()
+        self.close()
+
+    def close(self) -> None:
+        """End of the replay (also after a failure): the conversation closed, every line played final."""
         self._take(self.analyzer.close(self.clock()))
-        for result in self.results:
+        self._settle(len(self.results))
+
+    def _settle(self, upto: int) -> None:
+        """Lines before ``upto`` (played ones: a prefix) are final: compared, handed to ``on_result``."""
+        while self._final < upto:
+            result = self.results[self._final]
+            if result.t_sent is None and result.skipped is None:
+                return  # not played: the replay was cut short here
             if result.t_sent is not None:
                 result.comparison = compare(result.line.answers, result.got)
+            if self.on_result is not None:
+                self.on_result(result)
+            self._final += 1
 
     # ---- records to lines ----
 

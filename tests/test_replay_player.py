@@ -108,3 +108,19 @@ def test_a_refused_line_is_not_sent(pace, monkeypatch):
         port.close()
     assert [r.skipped for r in results] == [None, "no moves here", None]
     assert written == [b"0RV\r\n", b"0RV\r\n"]
+
+
+def test_each_result_comes_as_soon_as_it_is_final():
+    """A line's result is handed out once nothing can change it (before the next line goes, when nothing
+    is owed), not at the end of the replay: compared, in order."""
+    script = captured([b"0RV\r\n", b"0RS\r\n", b"0RV\r\n"], gaps=[0.0, 0.2, 0.2])
+    seen: list[tuple[int, float, bool]] = []
+    port, _ = open_port(SIM)
+    try:
+        player = Player(port, script, Analyzer(no_answer_timeout=0.2, fast=False),
+                        on_result=lambda r: seen.append((r.line.n, time.monotonic(), r.same)))
+        results = player.run()
+    finally:
+        port.close()
+    assert [n for n, _, _ in seen] == [0, 1, 2] and all(same for _, _, same in seen)
+    assert seen[0][1] <= results[1].t_sent + 0.01 and seen[1][1] <= results[2].t_sent + 0.01
