@@ -1,11 +1,11 @@
 """``xac1 decode``: read a capture made by any common serial tool and show the checked conversation.
 
 A thin shell in three parts: argument parsing (``add_arguments``, each value checked as it is parsed),
-source opening (``_open_sources``: each file opened once, ``-`` being standard input; the format sniffed
-from the buffered heads by ``sniffer.io.registry``, ``_choose_format``), and output (``_decode``: the
-sniffer's ``Analyzer`` makes records, the sniffer's views print them). Problems in the file (a malformed
-line, a damaged record) are listed on stderr with file and line or byte offset, counted in the summary
-record, and what could be read is decoded anyway.
+source opening (``sniffer.capture_args``, shared with ``xac1 replay``: each file opened once, ``-`` being
+standard input; the format sniffed from the buffered heads by ``sniffer.io.registry``), and output
+(``_decode``: the sniffer's ``Analyzer`` makes records, the sniffer's views print them). Problems in the
+file (a malformed line, a damaged record) are listed on stderr with file and line or byte offset, counted
+in the summary record, and what could be read is decoded anyway.
 
 Exit status: 0 every byte read and no violation; 1 violations found or problems in the capture (their
 count is said, and is ``problems`` in the JSON lines summary); 2 nothing decoded (missing file, unknown
@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any, Final
 
 from xac1_proto import spec
 
+from .capture_args import WRONG_FORMAT_LIMIT, add_capture_arguments, choose_format, open_sources
+
 if TYPE_CHECKING:
     from collections.abc import Iterator
 
@@ -35,11 +37,8 @@ if TYPE_CHECKING:
 
 HELP = "decode a capture file (socat, spy://, interceptty, jpnevulator, Saleae, sigrok, pcap, raw, jsonl)"
 PROGRESS_MIN_BYTES = 1 << 20  # show a progress bar on a terminal from this file size up
-WRONG_FORMAT_LIMIT: Final = 10  # problems before any data, with --input-format: the format is wrong
 WRONG_FORMAT_SHOWN: Final = 3  # of which this many are printed
 SUMMARY_PROBLEMS: Final = 5  # problem messages copied into the JSON lines summary record
-_INPUT_FORMATS = ("auto", "jsonl", "pcap", "socat", "spy", "interceptty", "jpnevulator", "saleae",
-                  "sigrok", "raw")
 _HEADERS: Final = frozenset(spec.HEADERS[spec.COMMAND] | spec.HEADERS[spec.ANSWER])
 GC_YOUNG: Final = 10_000  # a decode's youngest-generation threshold (Python's default: 700)
 
@@ -52,17 +51,6 @@ def _seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
     if not math.isfinite(value) or value <= 0 or value > 86400:
         raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds above 0 and at most 86400")
-    return value
-
-
-def _rate(text: str) -> float:
-    """``--samplerate``: a positive, finite rate in Hz."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a rate in Hz") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a sample rate in Hz above 0")
     return value
 
 
@@ -92,24 +80,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                 "else the first to speak; saleae the file/analyzer named host, else the first file; sigrok "
                 "uart-1 (several decoder instances) or tx-data (one); pcap TX; raw the file named host, else "
                 "the first file. See README \"Decoding captures\".")
-    p.add_argument("files", nargs="+", metavar="FILE",
-                   help="capture file(s) ('-' is standard input; pipes and FIFOs work); formats with one "
-                        "file per direction take two")
-    p.add_argument("--input-format", "-I", default="auto", choices=_INPUT_FORMATS,
-                   help="the capture's format (default: sniffed from the content)")
+    add_capture_arguments(p)
     p.add_argument("--format", "-f", default="text", choices=("text", "jsonl", "summary"),
                    help="output: a line per frame (text), the JSON lines schema (jsonl), or only the summary")
     p.add_argument("--only-violations", action="store_true",
                    help="show only records with a violation (the summary still counts everything)")
     p.add_argument("--header", action="append", metavar="HDR", default=None, type=_header,
                    help="show only frames of this command header (and their answers), e.g. 0MV; repeatable")
-    p.add_argument("--host-is", metavar="SIDE", default=None,
-                   help="which side is the host, named as the format names it: socat '>' or '<', spy TX/RX, "
-                        "a jpnevulator alias or tty, a sigrok instance (uart-1) or class (tx-data), a Saleae "
-                        "file or analyzer name, a raw file, pcap TX/RX")
-    p.add_argument("--samplerate", type=_rate, metavar="HZ", default=None,
-                   help="sigrok: sample rate turning sample numbers (--protocol-decoder-samplenum) into "
-                        f"time (default: inferred from the byte lengths at {spec.BAUD} baud)")
     p.add_argument("--timeout", "--no-answer-timeout", dest="no_answer_timeout", type=_seconds, metavar="S",
                    default=None, help="no-answer timeout in seconds after a command's last byte; moves get "
                                       f"their estimated time doubled on top (default "
@@ -150,8 +127,8 @@ def run(args: argparse.Namespace, summaries: list[dict[str, Any]] | None = None)
     try:
         if args.report and _all_empty(args.files):  # nothing to detect, but the report says so
             return _empty_report(args)
-        sources = _open_sources(args.files, report)
-        fmt, one_sided = _choose_format(sources, args, report)
+        sources = open_sources(args.files, report)
+        fmt, one_sided = choose_format(sources, args, report, "xac1 decode")
         with Capture(sources, fmt, host_is=args.host_is, samplerate=args.samplerate,
                      report=report) as capture, _few_collections():
             return _decode(capture, args, one_sided, summaries)
@@ -189,68 +166,6 @@ def _empty_report(args: argparse.Namespace) -> int:
     return 2
 
 
-def _open_sources(files: list[str], report: Report) -> list[Source]:
-    """Each file opened once (``-``: standard input); a missing file or a directory is a FormatError."""
-    from pathlib import Path
-
-    from .io.base import STDIN, FormatError, Source
-
-    if files.count(STDIN) > 1:
-        raise FormatError("'-' (standard input) can be given once")
-    sources: list[Source] = []
-    try:
-        for f in files:
-            if f != STDIN:
-                path = Path(f)
-                if not path.exists():
-                    raise FormatError(f"{f}: no such file")
-                if path.is_dir():
-                    raise FormatError(f"{f}: is a directory; give the capture file(s) in it")
-            sources.append(Source(f, report))
-    except BaseException:
-        for src in sources:
-            src.close()
-        raise
-    return sources
-
-
-def _choose_format(sources: list[Source], args: argparse.Namespace, report: Report) -> tuple[str, bool]:
-    """The input format (sniffed, or ``--input-format``); a found partner file is appended to
-    ``sources``. Also says whether the capture holds one line direction only (half of a capture that
-    keeps one direction a file, the other file missing)."""
-    from .io import saleae
-    from .io.base import Source
-    from .io.registry import SURE, detect, sniff_one
-
-    fmt = args.input_format
-    if fmt == "auto":
-        found = detect(sources)
-        fmt = found.name
-        close = [(n, s) for n, s in found.considered[1:] if s >= SURE]
-        if close:
-            others = ", ".join(f"{n} ({s})" for n, s in close)
-            print(f"xac1 decode: reading as {fmt} (also considered: {others})", file=sys.stderr)
-    else:
-        looks = [(src.name, sniff_one(src)) for src in sources]
-        report.give_up_after = WRONG_FORMAT_LIMIT
-        report.looks_like = ", ".join(f"{name} looks like a {seen} capture" for name, seen in looks
-                                      if seen not in (None, fmt))
-    one_file_per_side = fmt == "raw" or (fmt == "saleae" and all(
-        saleae.one_direction(src.head()) for src in sources))
-    if len(sources) == 1 and one_file_per_side:
-        partner = _partner(sources[0].name) if sources[0].regular else None
-        if partner is None:
-            report.note(f"{sources[0].name} holds one line direction only ({fmt} keeps one a file) and "
-                        f"no file of the other direction was given or found: the other direction is "
-                        f"missing, so nothing that needs both (answers, pairing, no-answer, alarms) is "
-                        f"judged; give both files")
-            return fmt, True
-        print(f"xac1 decode: {fmt} keeps one line direction a file: reading {partner} with it",
-              file=sys.stderr)
-        sources.append(Source(partner, report))
-    return fmt, False
-
-
 def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
     """``--annotate``: the pcapng recorder (``sniffer.io.pcapng_writer``), or None."""
     if args.annotate is None:
@@ -264,21 +179,6 @@ def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
         raise FormatError(f"--annotate {args.annotate}: that is an input file; give another name")
 
     return PcapngRecorder(args.annotate, source=f"xac1 decode {' '.join(args.files)} ({capture.format})")
-
-
-def _partner(path: str) -> str | None:
-    """The other direction's file of a one-file-per-direction capture: ``host`` <-> ``device`` in the
-    name (``saleae-host.csv`` -> ``saleae-device.csv``), when that file exists."""
-    import os
-    import re
-
-    folder, name = os.path.split(path)
-    swap = {"host": "device", "device": "host", "Host": "Device", "Device": "Host", "HOST": "DEVICE",
-            "DEVICE": "HOST"}
-    other, n = re.subn(r"host|device", lambda m: swap.get(m.group(0), m.group(0)), name, count=1,
-                       flags=re.IGNORECASE)
-    candidate = os.path.join(folder, other)
-    return candidate if n and candidate != path and os.path.isfile(candidate) else None
 
 
 # ---- output ----

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "xac1_proto"
 
 # The sans-IO core (docs: README "Architecture"); the rulebook engine joins it once it exists.
-CORE = ["spec", "grammar", "frames", "codec", "framer", "motion", "chunk", "errors", "exchange"]
+CORE = ["spec", "grammar", "frames", "codec", "framer", "motion", "chunk", "errors", "exchange", "replay"]
 if (PACKAGE / "conversation.py").exists():
     CORE.append("conversation")
 

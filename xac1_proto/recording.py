@@ -2,7 +2,9 @@
 
 Line 1: ``{"type":"recording","version":1,"started":<unix s>,"source":"<free text>"}``; then one line
 per chunk as it was seen: ``{"type":"chunk","t":<unix s or null>,"dir":"host"|"device","data":"<hex>"}``
-(``"error":"..."`` when the source flagged the bytes). Each line is written and flushed to the OS as
+(``"error":"..."`` when the source flagged the bytes). A program may add remarks between them:
+``{"type":"note","t":<unix s>,"text":"..."}`` (``xac1 sim --replay``: a line not in the capture); readers
+skip them. Each line is written and flushed to the OS as
 soon as the chunk is seen, so a process killed with kill -9 keeps every line written; the file is
 fsynced at least once a second (and on close) against power loss.
 """
@@ -47,6 +49,10 @@ class RecordingWriter:
             obj["error"] = chunk.error
         self._write(obj)
 
+    def note(self, text: str, t: float | None = None) -> None:
+        """A remark in the recording at time ``t`` (default: now); readers skip it."""
+        self._write({"type": "note", "t": time.time() if t is None else t, "text": text})
+
     def close(self) -> None:
         if not self._f.closed:
             self._f.flush()
@@ -78,7 +84,7 @@ def read_recording(lines: Iterator[str], name: str = "<recording>",
             continue
         try:
             obj = json.loads(line)
-            if obj.get("type") == "recording":
+            if obj.get("type") in ("recording", "note"):
                 continue
             if obj.get("type") != "chunk" or obj.get("dir") not in ("host", "device"):
                 raise ValueError("not a chunk line")

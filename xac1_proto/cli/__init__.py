@@ -49,6 +49,9 @@ COMMANDS: Final[dict[str, Subcommand]] = {
     "decode": Subcommand("sniffer.decode_cli",
                          "decode a capture file (socat, spy://, interceptty, jpnevulator, Saleae, sigrok, "
                          "pcap, raw, jsonl)"),
+    "replay": Subcommand("sniffer.replay_cli",
+                         "play a capture's host side against a controller (or the simulator) and show "
+                         "where the answers differ"),
     "wireshark": Subcommand("sniffer.wireshark.wireshark_cmd",
                             "install the XA-C1 Wireshark dissector and extcap (install [--uninstall]), or "
                             "show its folders (path)"),

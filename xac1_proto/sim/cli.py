@@ -74,6 +74,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", metavar="FILE", help="record every byte both ways: FILE.pcapng for "
                         "Wireshark (with verdicts), else our JSON lines recording")
     parser.add_argument("--estop", action="store_true", help="start with the emergency stop input on")
+    parser.add_argument("--replay", action="append", metavar="CAPTURE", default=None,
+                        help="answer as the captured device did: any capture xac1 decode reads (give it "
+                             "twice for formats with one file per direction); lines the capture does not "
+                             "hold next are answered by the model")
+    parser.add_argument("--replay-strict", action="store_true",
+                        help="with --replay: a line the capture does not hold next gets no answer")
+    parser.add_argument("--replay-format", metavar="FORMAT", default="auto",
+                        help="with --replay: the capture's format (default: sniffed, as xac1 decode)")
+    parser.add_argument("--replay-host-is", metavar="SIDE", default=None,
+                        help="with --replay: which side of the capture is the host (as decode's --host-is)")
     parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                         help="any simulator option (the xac1sim:// query options), e.g. accept_lowercase=1")
 
@@ -143,6 +153,7 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
     from ..output_file import check_output
     from .config import DEVIATIONS, config_from_options
     from .model import DeviceModel
+    from .replaying import ReplayingDevice, load_script
     from .runner import serve_pty, serve_tcp
     from .state import load_state, save_state
 
@@ -152,15 +163,25 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
         return EXIT_OK
     if args.link and not args.pty:
         return _fail("--link goes with --pty")
+    replaying = args.replay is not None
+    if not replaying and (args.replay_strict or args.replay_format != "auto" or args.replay_host_is):
+        return _fail("--replay-strict, --replay-format and --replay-host-is go with --replay CAPTURE")
     try:
         config = config_from_options(_options(args))
         address = _tcp_address(args.tcp) if args.tcp else None
         if args.state:  # a regular file (or a link to one), checked before anything starts
             check_output(args.state, "--state")
         points = load_state(args.state) if args.state else {}
+        script = load_script(args.replay, args.replay_format, args.replay_host_is) if replaying else None
     except (ValueError, XAC1Error) as exc:
         return _fail(str(exc))
-    model = DeviceModel(config, points)
+    if script is not None:
+        model: DeviceModel = ReplayingDevice(script, config, strict=args.replay_strict, points=points,
+                                             on_note=lambda note: _say_replay(note, writer))
+        print(f"xac1 sim: replaying {len(script)} captured host lines of {', '.join(args.replay)}"
+              f"{' (strict)' if args.replay_strict else ''}", file=sys.stderr, flush=True)
+    else:
+        model = DeviceModel(config, points)
     if args.estop:
         model.set_estop(True)
 
@@ -226,6 +247,15 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
                 print(f"xac1 sim: error: cannot write the log {args.log}: {exc}", file=sys.stderr)
                 died = True
     return EXIT_FAILED if died or save_errors else EXIT_OK
+
+
+def _say_replay(note: str, log: ChunkWriter | None) -> None:
+    """A line the capture does not hold next (from the simulator's loop): said on stderr at once, and in
+    the ``--log`` recording when it takes notes (our JSON lines recording does)."""
+    print(f"xac1 sim: replay: {note}", file=sys.stderr, flush=True)
+    take_note = getattr(log, "note", None)
+    if take_note is not None:
+        take_note(f"replay: {note}")
 
 
 def _reason(error: BaseException | None) -> str:

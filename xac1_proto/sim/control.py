@@ -3,7 +3,7 @@ model, return the text to print. No I/O here; the CLI calls ``apply`` under the 
 
 Commands: ``help``, ``status``, ``estop on|off``, ``alarm CODE``, ``fault CODE`` (09, 0B, 0A: next move;
 04, 06: next memory access), ``noise P``, ``drop P``, ``delay MS [P]``, ``seed N``, ``slow MS``,
-``deviation [NAME [on|off]]``.
+``deviation [NAME [on|off]]``, ``replay`` (where a ``--replay`` run stands in its capture).
 """
 
 from __future__ import annotations
@@ -124,6 +124,14 @@ def _deviation(model: DeviceModel, args: list[str], t: float) -> Result:
     return f"deviation {args[0]} {'on' if on else 'off'}", []
 
 
+def _replay(model: DeviceModel, args: list[str], t: float) -> Result:
+    from .replaying import ReplayingDevice
+
+    if not isinstance(model, ReplayingDevice):
+        raise ValueError("not replaying a capture (start the simulator with --replay CAPTURE)")
+    return model.replay_where(), []
+
+
 # The one table of control commands: ``help`` and ``apply`` are both made from it.
 CONTROLS: Final[dict[str, Control]] = {
     "status": Control("status", "show the device state", (0,),
@@ -142,6 +150,7 @@ CONTROLS: Final[dict[str, Control]] = {
     "slow": Control("slow MS", f"extra turnaround before every answer (0..{MAX_WAIT_MS:g} ms)", (1,), _slow),
     "deviation": Control("deviation [NAME [on|off]]", "list deviations, or switch one on (off)", (0, 1, 2),
                          _deviation),
+    "replay": Control("replay", "where in the capture the replay stands (xac1 sim --replay)", (0,), _replay),
     "help": Control("help", "this text", (0,), lambda m, a, t: (help_text(), [])),
 }
 

@@ -3,7 +3,9 @@
 URL: ``xac1sim://[?OPTION=VALUE&...]``, e.g. ``xac1sim://?time_scale=0&version=102&deviation=no-2``.
 The options are those of ``xac1_proto.sim.config.OPTIONS`` (the one list, shared with ``xac1 sim``):
 time_scale, wire_timing, version, turnaround (ms), stroke (LO:HI), deviation (repeat or comma-separate),
-seed, noise, drop, delay (ms), delay_p, and the silent-point switches. An unknown option or a bad value
+seed, noise, drop, delay (ms), delay_p, and the silent-point switches; and those of ``xac1 sim
+--replay``: ``replay=CAPTURE`` (repeat it for formats with one file per direction), ``replay_strict=1``,
+``replay_format=FORMAT``, ``replay_host_is=SIDE`` (docs/replay.md). An unknown option or a bad value
 raises ``serial.SerialException`` naming it and the known options.
 
 No thread: ``write`` feeds the model with the current monotonic time; ``read`` waits (sleeping until the
@@ -21,7 +23,7 @@ from typing import Any
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from ..sim.config import config_from_options
+from ..sim.config import SimConfig, config_from_options
 from ..sim.model import DeviceModel
 
 SCHEME = "xac1sim"
@@ -42,6 +44,26 @@ def parse_url(url: str) -> dict[str, list[str]]:
         raise SerialException(f"{url!r}: bad query string ({exc})") from None
 
 
+# The replay options (``xac1 sim --replay``): the capture file(s), strict, its format, its host side.
+REPLAY_OPTIONS = ("replay", "replay_strict", "replay_format", "replay_host_is")
+
+
+def _replaying(options: dict[str, list[str]], config: SimConfig) -> DeviceModel:
+    """A device answering as the captured one did (``xac1_proto.sim.replaying``); ValueError naming a
+    bad option or capture."""
+    from ..sim.replaying import ReplayingDevice, load_script
+
+    files = options.get("replay")
+    if not files:
+        raise ValueError("replay_strict, replay_format and replay_host_is go with replay=CAPTURE")
+    strict = options.get("replay_strict", ["0"])[-1]
+    if strict not in ("0", "1"):
+        raise ValueError(f"replay_strict: expected 0 or 1, got {strict!r}")
+    fmt = options.get("replay_format", ["auto"])[-1]
+    host_is = options.get("replay_host_is", [None])[-1]
+    return ReplayingDevice(load_script(files, fmt, host_is), config, strict=strict == "1")
+
+
 class Serial(SerialBase):
     """pyserial port whose other end is a simulated XA-C1 (see the module docstring)."""
 
@@ -57,11 +79,12 @@ class Serial(SerialBase):
         if self._port is None:
             raise SerialException("Port must be configured before it can be used.")
         options = parse_url(self.portstr)
+        replay = {key: options.pop(key) for key in REPLAY_OPTIONS if key in options}
         try:
             config = config_from_options(options)
+            self.model = _replaying(replay, config) if replay else DeviceModel(config)
         except ValueError as exc:
             raise SerialException(f"{self.portstr}: {exc}") from None
-        self.model = DeviceModel(config)
         self._rx.clear()
         self.is_open = True
 
