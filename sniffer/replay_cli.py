@@ -107,6 +107,13 @@ def run(args: argparse.Namespace) -> int:
         settings = _settings(args)
     except SettingsError as exc:
         return _error(str(exc))
+    if args.report:
+        from xac1_proto.output_file import OutputFileError, check_output
+
+        try:  # a report path that cannot take the page is known before anything is sent
+            check_output(args.report, "--report")
+        except OutputFileError as exc:
+            return _error(f"{exc}; nothing sent")
     try:
         captured = read_script(args.files, args.input_format, args.host_is, args.samplerate, PROGRAM,
                                args.timeout)

@@ -154,3 +154,12 @@ def test_a_device_that_never_answers_is_exit_3_nothing_of_the_capture_sent(capsy
     assert status == 3 and "cannot read the device's points, OUT ports and position first" in err
     assert "no answer from the device" in err and objs == []
     assert set(host) <= {b"0%C\r\n", b"0RV\r\n"}  # the liveness check only: 0WP1... never went out
+
+
+def test_a_report_path_that_is_no_regular_file_is_exit_2_nothing_sent(capsys, tmp_path):
+    """``--report`` naming a directory (or a FIFO, a device) is refused before the capture is read or a
+    port opened: exit 2, a message naming the option and the path, nothing sent."""
+    status, objs, err = replay(capsys, RECORDING, "--port", "socket://127.0.0.1:1", "--report",
+                               str(tmp_path))
+    assert status == 2 and "--report" in err and str(tmp_path) in err and "nothing sent" in err
+    assert objs == []
