@@ -22,7 +22,7 @@ from xac1_proto.cli import COMMANDS
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "xac1_proto"
 
-# The sans-IO core (docs: README "Architecture"); the rulebook engine joins it once it exists.
+# The sans-IO core (docs/architecture.md "Layers"); the rulebook engine joins it once it exists.
 CORE = ["spec", "grammar", "frames", "codec", "framer", "motion", "chunk", "errors", "exchange"]
 if (PACKAGE / "conversation.py").exists():
     CORE.append("conversation")
@@ -135,17 +135,21 @@ def test_client_registers_the_url_handler():
     assert got == [False, "0RV100\r\n"]
 
 
-def readme_snippet() -> str:
-    """The README's "open xac1sim:// from a pyserial script" snippet (the block after its marker)."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+SNIPPET_PAGE = ROOT / "docs" / "python-api.md"
+
+
+def guide_snippet() -> str:
+    """The Python API guide's "open xac1sim:// from a pyserial script" snippet (the block after its
+    marker)."""
+    text = SNIPPET_PAGE.read_text(encoding="utf-8")
     m = re.search(r"<!-- snippet: xac1sim-url -->\n```python\n(.*?)```", text, re.DOTALL)
-    assert m, "README.md lost its xac1sim:// snippet (marker <!-- snippet: xac1sim-url -->)"
+    assert m, "docs/python-api.md lost its xac1sim:// snippet (marker <!-- snippet: xac1sim-url -->)"
     return m.group(1)
 
 
-def test_readme_snippet_opens_xac1sim_with_pyserial_alone():
-    """The README's snippet, run as a plain pyserial script, talks to the simulator."""
-    snippet = readme_snippet()
+def test_guide_snippet_opens_xac1sim_with_pyserial_alone():
+    """The guide's snippet, run as a plain pyserial script, talks to the simulator."""
+    snippet = guide_snippet()
     assert "import xac1_proto" not in snippet.replace("xac1_proto.urlhandler", "")
     got = fresh(snippet + "\nimport json\nprint(json.dumps(answer.decode()))")
     assert got == "0RV100\r\n"
