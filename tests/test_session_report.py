@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from peak_rss import run_measuring_peak_rss
@@ -51,7 +52,7 @@ def run(*args: str, cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess[str]:
 
 # ---- the aggregator ----
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=budget(40), deadline=None)
 @given(st.lists(st.tuples(st.sampled_from([H, D]),
                           st.one_of(st.binary(max_size=20), frames().map(lambda f: f.to_bytes())),
                           st.floats(0, 2.0)), max_size=40),
