@@ -68,6 +68,7 @@ def test_live_jpnevulator_and_spy_agree_with_socat(tmp_path: Path) -> None:
         assert violations == LIVE_VIOLATIONS
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.requires_tool("sigrok-cli")
 def test_sigrok_cli_annotations_of_a_synthesized_waveform(tmp_path: Path) -> None:
     """sigrok-cli's UART decoder (two instances) on a synthesized 9600 8N1 waveform: the frames,
@@ -80,6 +81,7 @@ def test_sigrok_cli_annotations_of_a_synthesized_waveform(tmp_path: Path) -> Non
         assert violations == sorted(gallery.EXPECTED_VIOLATIONS)
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.requires_tool("tshark", "editcap")
 def test_pcapng_written_is_read_by_tshark_and_editcap_pcap_decodes(tmp_path: Path) -> None:
     """Our pcapng is an RTAC serial capture for tshark; editcap's pcap of it decodes to the session."""

@@ -51,6 +51,7 @@ def forbidden(modules: list[str]) -> list[str]:
             or any(m == f or m.startswith(f + ".") for f in FORBIDDEN_OWN)]
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.parametrize("name", CORE)
 def test_core_module_loads_no_io_thread_or_shell(name):
     """Importing a core module alone loads no serial, socket, threading, select and no sniffer,
@@ -60,12 +61,14 @@ def test_core_module_loads_no_io_thread_or_shell(name):
     assert forbidden(modules) == []
 
 
+@pytest.mark.slow  # starts a process
 def test_whole_core_together_loads_nothing_forbidden():
     """All the core modules imported in one interpreter: still nothing forbidden."""
     modules = loaded_after("\n".join(f"import xac1_proto.{n}" for n in CORE))
     assert forbidden(modules) == []
 
 
+@pytest.mark.slow  # starts a process
 def test_forbidden_check_catches_a_shell():
     """The check above is not vacuous: importing the client does load pyserial and threads."""
     found = forbidden(loaded_after("import xac1_proto.client"))
@@ -98,6 +101,7 @@ def test_package_never_imports_a_shell_above_it():
     assert offenders == []
 
 
+@pytest.mark.slow  # starts a process
 def test_package_import_is_lazy():
     """``import xac1_proto`` loads no submodule and registers no URL handler; a public name loads its
     module on first use."""
@@ -124,6 +128,7 @@ def test_public_names_resolve():
         _ = xac1_proto.no_such_name
 
 
+@pytest.mark.slow  # starts a process
 def test_client_registers_the_url_handler():
     """Importing ``xac1_proto.client`` makes ``serial.serial_for_url('xac1sim://')`` work."""
     got = fresh("import json, serial\n"
@@ -147,6 +152,7 @@ def guide_snippet() -> str:
     return m.group(1)
 
 
+@pytest.mark.slow  # starts a process
 def test_guide_snippet_opens_xac1sim_with_pyserial_alone():
     """The guide's snippet, run as a plain pyserial script, talks to the simulator."""
     snippet = guide_snippet()
@@ -155,6 +161,7 @@ def test_guide_snippet_opens_xac1sim_with_pyserial_alone():
     assert got == "0RV100\r\n"
 
 
+@pytest.mark.slow  # starts a process
 def test_parse_imports_only_its_own_subcommand():
     """``xac1 parse`` imports its module and none of the other seven (nor serial, sniffer, conformance)."""
     modules = loaded_after("import contextlib, io\nfrom xac1_proto.cli import main\n"
@@ -166,6 +173,7 @@ def test_parse_imports_only_its_own_subcommand():
     assert forbidden(modules) == ["xac1_proto.cli", "xac1_proto.cli.parse_cmd"]
 
 
+@pytest.mark.slow  # starts a process
 def test_help_imports_no_subcommand():
     """``xac1 --help`` is built from the table alone."""
     modules = loaded_after("import contextlib, io\nfrom xac1_proto.cli import main\n"

@@ -266,6 +266,7 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.requires_tool("socat")
 def test_socat_bridges_pty_to_tcp() -> None:
     """socat (a real third-party tool) bridges the simulator's pty to a TCP port; a socket:// client
