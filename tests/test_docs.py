@@ -333,3 +333,15 @@ def test_the_guides_have_python_snippets():
     code = "\n".join(c for w, c in python_snippets() if w.startswith("docs/python-api.md"))
     for needed in ("Client(", "parse(", "Framer()", "Conversation()", "Analyzer()", "Capture("):
         assert needed in code, needed
+
+
+def test_capture_files_named_in_the_examples_exist():
+    """Every ``captures/...`` file (or glob) the README's and the guides' examples name is in the
+    gallery, so the examples work when pasted from the project's root."""
+    named = set()
+    for page in [README, *guides()]:
+        for block in re.findall(r"^```(?:sh|console)\n(.*?)^```", page.read_text(encoding="utf-8"),
+                                re.DOTALL | re.MULTILINE):
+            named |= set(re.findall(r"(captures/[\w.*?-]+)", block))
+    assert len(named) > 5
+    assert [n for n in sorted(named) if not list(ROOT.glob(n))] == []
