@@ -91,7 +91,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.epilog = ("host side by default: socat '>'; spy TX; interceptty '<'; jpnevulator the tty named host, "
                 "else the first to speak; saleae the file/analyzer named host, else the first file; sigrok "
                 "uart-1 (several decoder instances) or tx-data (one); pcap TX; raw the file named host, else "
-                "the first file. See README \"Decoding captures\".")
+                "the first file. See docs/captures.md.")
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="capture file(s) ('-' is standard input; pipes and FIFOs work); formats with one "
                         "file per direction take two")

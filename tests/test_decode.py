@@ -204,7 +204,7 @@ def test_saleae_framing_error_is_a_line_error_on_its_frame(name: str) -> None:
 @pytest.mark.slow
 def test_untimed_capture_says_what_order_cannot_tell() -> None:
     """interceptty without -T has no time: the unanswered 0RV shows as overlapping-command on the next
-    0RV, with a detail saying it may as well be a no-answer (README "Decoding captures")."""
+    0RV, with a detail saying it may as well be a no-answer (docs/captures.md)."""
     result = xac1("decode", "captures/interceptty.log", "--format", "jsonl")
     lines = [json.loads(line) for line in result.stdout.splitlines()]
     overlap = [r for r in lines[:-1] if "overlapping-command" in r["violations"]]

@@ -1,5 +1,5 @@
 """``xac1 decode`` on the inputs that broke it (issue 13, "Found: Decode"): each finding is a test named
-after it. The rule (README "Decoding captures"): every problem is reported as ``file:offset`` or
+after it. The rule (docs/captures.md): every problem is reported as ``file:offset`` or
 ``file:line`` with what was wrong, the damaged part is skipped, the rest is decoded; exit 1 with the
 count of problems, 0 only for a clean read, 2 when nothing could be decoded; never a traceback."""
 

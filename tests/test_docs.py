@@ -345,3 +345,17 @@ def test_capture_files_named_in_the_examples_exist():
             named |= set(re.findall(r"(captures/[\w.*?-]+)", block))
     assert len(named) > 5
     assert [n for n in sorted(named) if not list(ROOT.glob(n))] == []
+
+
+def test_citations_of_the_readme_name_its_sections():
+    """Code, tests and pages that cite ``README "Section"`` name a section the README has (the reference
+    moved to docs/: a citation of a section that left the README points at nothing)."""
+    heads = set(re.findall(r"^#{2,3} (.+)$", README.read_text(encoding="utf-8"), re.MULTILINE))
+    bad = []
+    for path in scanned_files():
+        text = path.read_text(encoding="utf-8")
+        for m in re.finditer(r'README \\?"([^"\\]+)\\?"', text):
+            if m.group(1) not in heads:
+                line = text.count("\n", 0, m.start()) + 1
+                bad.append(f"{path.relative_to(ROOT)}:{line}: {m.group(1)!r}")
+    assert not bad, "README sections cited that the README does not have:\n" + "\n".join(bad)

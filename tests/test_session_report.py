@@ -234,7 +234,7 @@ def test_report_object_refuses_a_directory(tmp_path):
 
 # ---- a large capture ----
 
-MAX_REPORT_BYTES = 9_000_000  # README "Session report": a report stays under 9 MB whatever the capture
+MAX_REPORT_BYTES = 9_000_000  # docs/output.md: a report stays under 9 MB whatever the capture
 MAX_RSS_MB = 200
 
 
