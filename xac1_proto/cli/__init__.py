@@ -52,6 +52,9 @@ COMMANDS: Final[dict[str, Subcommand]] = {
     "wireshark": Subcommand("sniffer.wireshark.wireshark_cmd",
                             "install the XA-C1 Wireshark dissector and extcap (install [--uninstall]), or "
                             "show its folders (path)"),
+    "sigrok": Subcommand("sniffer.sigrok.sigrok_cmd",
+                         "install the XA-C1 sigrok decoder for PulseView and sigrok-cli (install "
+                         "[--uninstall]), or show its folder (path)"),
     "extcap": Subcommand("sniffer.wireshark.extcap_cmd",
                          "Wireshark extcap interface (XA-C1 tap, XA-C1 proxy); Wireshark runs it"),
 }
