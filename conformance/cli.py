@@ -123,6 +123,7 @@ def _run(args: argparse.Namespace, policy: Any) -> int:
     if last.verdict:
         print(f"xac1 conformance: {last.verdict} (exit status {status})", flush=True)
     elif status == 2:
-        print("xac1 conformance: INCOMPLETE: nothing was checked (the run was interrupted before it began) "
-              "(exit status 2)", flush=True)
+        by = f" by {policy.stopped_by}" if policy.stopped_by else ""
+        print(f"xac1 conformance: INCOMPLETE: nothing was checked (the run was interrupted{by} before it "
+              f"began) (exit status 2)", flush=True)
     return status

@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime as _dt
+import hashlib
 import json
 import os
 import re
@@ -55,6 +56,8 @@ EXIT: Final = {CONFORMS: 0, NOT_CONFORM: 1, INCOMPLETE: 4, NOT_TESTED: 3, INTERR
 RANK: Final = (NOT_TESTED, NOT_CONFORM, INCOMPLETE, CONFORMS)
 FLEET_OWN: Final = frozenset({"port", "ports", "report_dir", "report_format", "report", "junit"})
 PROGRESS_PLUGIN: Final = "conformance.fleet_progress"
+MAX_STEM: Final = 96  # longest file stem made from a port URL (a hash of the URL ends a cut one)
+_HASH_CHARS: Final = 12
 _VERDICT = re.compile(r"^xac1 conformance: (.*) \(exit status (-?\d+)\)\s*$")
 _FAILED = re.compile(r"^(?:FAIL|ERROR) (\S+): (.+)$")
 _STOPPED = re.compile(r"^run stopped: (.+)$")
@@ -116,8 +119,14 @@ def read_ports_file(path: str) -> list[Target]:
 
 
 def slug(url: str) -> str:
-    """A file name for a port: ``socket://127.0.0.1:4001`` -> ``socket-127.0.0.1-4001``."""
-    return re.sub(r"[^A-Za-z0-9._]+", "-", url).strip("-.") or "port"
+    """A file name for a port: ``socket://127.0.0.1:4001`` -> ``socket-127.0.0.1-4001``; a long one is
+    cut to ``MAX_STEM`` characters, ending with a hash of the whole URL (so two long URLs that differ
+    only at their end still get two names): every file name stays far below the system's limit."""
+    stem = re.sub(r"[^A-Za-z0-9._]+", "-", url).strip("-.") or "port"
+    if len(stem) <= MAX_STEM:
+        return stem
+    digest = hashlib.sha256(url.encode("utf-8", "surrogateescape")).hexdigest()[:_HASH_CHARS]
+    return f"{stem[:MAX_STEM - _HASH_CHARS - 1].rstrip('-.')}-{digest}"
 
 
 def _resolve(url: str) -> str:
@@ -181,6 +190,21 @@ def file_names(ts: Sequence[Target]) -> list[str]:
             stem, k = f"{slug(t.url)}-{k}", k + 1
         out.append(stem)
     return out
+
+
+def check_names(folder: Path, stems: Sequence[str], suffixes: Sequence[str]) -> None:
+    """FleetError when a device's file name would not fit in ``folder`` (checked before anything starts;
+    ``slug`` keeps them short, so only a very deep folder can fail this)."""
+    try:
+        name_max = os.pathconf(folder, "PC_NAME_MAX")
+        path_max = os.pathconf(folder, "PC_PATH_MAX")
+    except (OSError, ValueError):  # the system does not say: the usual limits
+        name_max, path_max = 255, 4096
+    longest = max((f"{stem}{suffix}" for stem in stems for suffix in suffixes), key=len, default="")
+    full = folder.resolve() / longest
+    if len(longest.encode()) > name_max or len(str(full).encode()) >= path_max:
+        raise FleetError(f"--report-dir {folder}: a device's file name would be too long there ({full}); "
+                         f"choose a shorter folder")
 
 
 def _writable_dir(path: str) -> Path:
@@ -583,6 +607,11 @@ def run(args: argparse.Namespace) -> int:
     common = passthrough(args)
     with contextlib.ExitStack() as stack:
         files = out_dir or Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="xac1-fleet-")))
+        try:
+            check_names(files, file_names(ts), (f".{args.report_format}", ".xml", ".log"))
+        except FleetError as exc:
+            print(f"xac1 conformance: {exc}", file=sys.stderr)
+            return 2
         devices = []
         for t, stem in zip(ts, file_names(ts), strict=True):
             report = files / f"{stem}.{args.report_format}" if out_dir else None

@@ -62,4 +62,9 @@ def junit_tree(rep: Report) -> ET.ElementTree:
 
 
 def write_junit(path: Path, rep: Report) -> None:
-    junit_tree(rep).write(path, encoding="utf-8", xml_declaration=True)
+    """The JUnit XML, written atomically to the file ``path`` names (through a link, to its target)."""
+    from xac1_proto.output_file import write_output
+
+    root = junit_tree(rep).getroot()
+    assert root is not None  # junit_tree builds it
+    write_output(path, ET.tostring(root, encoding="utf-8", xml_declaration=True))

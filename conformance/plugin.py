@@ -4,8 +4,9 @@ How it works: importing this module costs nothing beyond pytest itself; every ho
 unless the run uses an ``--xac1-*`` option or collects the checks of ``conformance.checks``. Then the
 options become a ``Settings`` (bad values stop the run with a usage error), the checks are ordered
 (power-on checks first, the random-sequence check last) and those the settings forbid are skipped with
-the reason. The first check that needs the device opens it and snapshots the points and OUT ports; every
-check starts with any latched alarm reset. Each check's outcome becomes a ``Result`` with the rule from
+the reason. The device is opened before the first check (a port that does not open: no check starts);
+the first that needs it snapshots the points and OUT ports; every check starts with any latched alarm
+reset. Each check's outcome becomes a ``Result`` with the rule from
 its docstring and the probes as evidence. A ``DeviceAbort`` (no port, no answer, emergency stop) is no
 verdict on the check that met it: the run stops, the rest count as not run, exit status 3. A check whose
 last probe got no byte back is followed at once by the liveness check, so a device that stopped
@@ -49,6 +50,7 @@ class Xac1Run:
         self.config = config
         self.settings: Any = None
         self.dut: Any = None
+        self.opened: Any = None  # the device opened before the first check, until the fixture takes it
         self.snapshot: Any = None
         self.restore_report: Any = None
         self.restored = False
@@ -233,7 +235,7 @@ def _activate(run: Xac1Run) -> None:
     run.command_line = c.getoption("xac1_command_line")
     from .stopping import StopPolicy
 
-    run.policy = StopPolicy("xac1 conformance" if run.settings.cli else "xac1 plugin").install()
+    run.policy = StopPolicy.shared("xac1 conformance" if run.settings.cli else "xac1 plugin")  # one a process
     if c.pluginmanager.get_plugin("terminalreporter") is None:
         from .progress import Progress
 
@@ -264,6 +266,8 @@ def bad_options(c: pytest.Config) -> str | None:
 
 def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | None:
     """Why an output file cannot be written (checked before anything is sent), else None."""
+    from xac1_proto.output_file import OutputFileError, check_output
+
     from .report import kind_of
 
     for name, path, kinds in (("report", report, ("md", "html")), ("junit", junit, ("xml",))):
@@ -279,6 +283,10 @@ def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | Non
             return f"{flag(name)} {path}: the directory {parent} does not exist"
         if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
             return f"{flag(name)} {path}: not writable (permission denied)"
+        try:  # through a link, to its target; never a FIFO or a device
+            check_output(path, flag(name))
+        except OutputFileError as exc:
+            return str(exc)
     return None
 
 
@@ -329,8 +337,24 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     run.total_info = sum(1 for i in checks if i.get_closest_marker("xac1_info"))
     run.collected = [(i.nodeid, i.name.removeprefix("test_"), i.get_closest_marker("xac1_info") is not None)
                      for i in checks]
+    if checks and not _open_early(run):  # a port that does not open is known before the first check
+        session.items[:] = [i for i in session.items if not is_check(i)]
+        return
     if run.progress is not None:
-        run.progress.begin(run.total)
+        run.progress.begin(run.total, run.total_info)
+
+
+def _open_early(run: Xac1Run) -> bool:
+    """Open the device before the first check (the session fixture takes it); False, with the run's
+    abort saying why, when the port does not open: no check is then started (nothing was sent)."""
+    from .dut import DeviceUnderTest
+
+    try:
+        run.opened = DeviceUnderTest.open(run.settings)
+    except Exception as exc:  # noqa: BLE001 - a port that does not open ends the run, with the reason
+        run.abort = f"cannot open {run.settings.port}: {exc}"
+        return False
+    return True
 
 
 @pytest.hookimpl(wrapper=True)
@@ -339,6 +363,8 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     progress = run.progress if run is not None and is_check(item) else None
     if progress is not None:
         progress.check(Path(str(item.path)).stem.removeprefix("test_"), item.name.removeprefix("test_"))
+    if run is not None and run.policy is not None and is_check(item):
+        run.policy.raise_if_lost()  # a signal whose raise a check swallowed stops the run here
     try:
         return (yield)
     except KeyboardInterrupt:  # a signal (stopping.Interrupted) cut this check short: no verdict on it
@@ -370,8 +396,9 @@ def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
 
     run = _run(request.config)
     assert run is not None
+    dut, run.opened = run.opened, None  # opened before the first check (pytest_collection_finish)
     try:
-        dut = DeviceUnderTest.open(xac1_settings)
+        dut = dut or DeviceUnderTest.open(xac1_settings)
     except Exception as exc:  # noqa: BLE001 - a port that does not open ends the run, with the reason
         raise DeviceAbort(f"cannot open {xac1_settings.port}: {exc}") from None
     run.dut = dut
@@ -500,11 +527,17 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         return
     if run.policy is not None:
         run.policy.ending("the device is being restored; the report follows")
-    if exitstatus == pytest.ExitCode.INTERRUPTED and not run.abort:
-        run.interrupted_by = (run.policy.interrupted_by if run.policy is not None else None) or "SIGINT"
+    stopped_by = run.policy.stopped_by if run.policy is not None else None  # even if its raise was lost
+    if (exitstatus == pytest.ExitCode.INTERRUPTED or stopped_by) and not run.abort:
+        run.interrupted_by = stopped_by or (run.policy.interrupted_by if run.policy is not None else None) \
+            or "SIGINT"
         run.abort = f"interrupted ({run.interrupted_by}) before every check ran"
     if run.dut is not None and not run.restored:
         _finish(run)
+    if run.opened is not None:  # opened, never used (every check left out or stopped before)
+        with contextlib.suppress(Exception):
+            run.opened.close()
+        run.opened = None
     if run.interrupted_by is None and run.policy is not None and run.policy.interrupted_by:
         run.interrupted_by = run.policy.interrupted_by  # a signal during the restore: ignored, but said
     from .report import build, terminal_lines, write_file
@@ -516,8 +549,8 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         if path:
             try:
                 writer(Path(path), rep)
-            except OSError as exc:
-                problems.append(f"could not write {path}: {exc.strerror or exc}")
+            except (OSError, ValueError) as exc:  # ValueError: OutputFileError, it is no longer a file
+                problems.append(f"could not write {path}: {getattr(exc, 'strerror', None) or exc}")
     run.verdict_line = rep.verdict_line
     status = rep.exit_status(c.getoption("xac1_allow_incomplete"))
     if run.total == 0:

@@ -40,8 +40,13 @@ class Progress:
         """A line that stays (above the live line on a terminal)."""
         self.console.print(Text(text), soft_wrap=True)
 
-    def begin(self, total: int) -> None:
+    def begin(self, total: int, info: int = 0) -> None:
+        """``total`` checks will run, ``info`` of them information records (the verdict counts the
+        others: the checks of stated rules), said once so that the two counts never disagree."""
         self.total = total
+        if info:
+            self.say(f"xac1 conformance: {total} checks to run: {total - info} of stated rules (the verdict "
+                     f"counts these) and {info} information records")
         if self.console.is_terminal:
             from rich.live import Live
 

@@ -459,9 +459,10 @@ def kind_of(path: Path) -> str | None:
 
 
 def write_file(path: Path, rep: Report) -> None:
-    """Markdown or HTML by the file's suffix."""
-    text = html_page(rep) if kind_of(path) == "html" else markdown(rep)
-    path.write_text(text, encoding="utf-8")
+    """Markdown or HTML by the file's suffix, written atomically to the file ``path`` names."""
+    from xac1_proto.output_file import write_output
+
+    write_output(path, html_page(rep) if kind_of(path) == "html" else markdown(rep))  # through a link
 
 
 __all__ = ["Report", "Result", "build", "html_page", "markdown", "result_from", "terminal_lines",

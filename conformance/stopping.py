@@ -8,10 +8,20 @@ and said so on stderr, so the restore and the report are never cut short. It is
 ``xac1_proto.signals``' policy (the one of every long-running command: the same signals, the same
 ``Interrupted``), shaped for a pytest session: the interrupt is raised where pytest runs, and the
 message goes to the process's own stderr, which pytest may have replaced.
+
+One policy a process: ``xac1 conformance`` installs one before pytest starts and the plugin takes that
+same one (``StopPolicy.shared``), so the first signal is the first whichever layer it lands in, and a
+second one 20 ms later is ignored even once pytest has ended. A raise can be swallowed where Python
+cannot pass an exception on: a garbage-collector callback (hypothesis keeps one), a ``__del__``, a
+weakref callback; Python then calls ``sys.unraisablehook``. The policy's hook recognises its own
+``Interrupted`` there, prints no traceback, and sends the same signal again from a helper thread, so it
+is raised once more where the run is (until ``ending()``); ``stopped_by`` keeps the first signal for
+the verdict whatever happened to the raise.
 """
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import os
 import signal
@@ -23,6 +33,8 @@ from typing import Any
 from xac1_proto.signals import SIGNALS, Interrupted, signal_name
 
 __all__ = ["SIGNALS", "Interrupted", "StopPolicy", "signal_name"]
+
+_in_place: list[StopPolicy] = []  # the installed policies, innermost last (the process's, first)
 
 
 def _say(text: str) -> None:
@@ -46,20 +58,56 @@ class StopPolicy:
         self.what = "stopping: the device is restored, then the report follows"
         self.late: int | None = None  # the first signal that came while the ending was under way
         self._previous: dict[int, Any] = {}
+        self._previous_unraisable: Any = None
+        self._users = 0  # the takers of ``shared`` still holding it (each uninstalls once)
+        self._raised: Interrupted | None = None  # the Interrupted last raised (to know it when swallowed)
+        self._again = False  # the raise was swallowed; the signal is on its way again
+        self._in_hook = False  # inside ``_unraisable``
+        self._ended = False
+
+    @classmethod
+    def shared(cls, program: str = "xac1 conformance") -> StopPolicy:
+        """The policy already in place in this process (``xac1 conformance`` installs one before pytest
+        starts), so that a run has one first signal; else a new one, installed. Uninstall it once."""
+        current = _in_place[-1] if _in_place else None
+        if current is not None and signal.getsignal(signal.SIGINT) == current._handle:
+            return current.take()
+        return cls(program).install()
+
+    def take(self) -> StopPolicy:
+        """One more holder of this installed policy (``shared``); each holder uninstalls once."""
+        self._users += 1
+        return self
 
     @property
     def signal_name(self) -> str | None:
         return None if self.signum is None else signal_name(self.signum)
 
+    @property
+    def stopped_by(self) -> str | None:
+        """The signal that interrupted the run (came before ``ending``), whether or not its raise
+        reached pytest; None when none did."""
+        return None if self.signum is None or self.signum == -1 else signal_name(self.signum)
+
     def install(self) -> StopPolicy:
         if threading.current_thread() is threading.main_thread() and not self._previous:
             for sig in SIGNALS:
                 self._previous[sig] = signal.signal(sig, self._handle)
+            self._previous_unraisable = sys.unraisablehook
+            sys.unraisablehook = self._unraisable
+            _in_place.append(self)
         return self
 
     def uninstall(self) -> None:
+        if self._users:
+            self._users -= 1
+            return
         for sig, handler in self._previous.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        if self._previous:
+            sys.unraisablehook = self._previous_unraisable
+            if self in _in_place:
+                _in_place.remove(self)
         self._previous.clear()
 
     def ending(self, what: str) -> None:
@@ -67,8 +115,22 @@ class StopPolicy:
         if self.signum is None:
             self.signum = -1  # no signal came: later ones are still only ignored
         self.what = what
+        self._ended = True
+
+    def _interrupt(self) -> Interrupted:
+        assert self.signum is not None
+        self._raised = Interrupted(self.signum)
+        return self._raised
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self._again and signum == self.signum:  # the first signal, sent again: raise where the run is
+            if self._in_hook:  # still inside the hook that sent it: a raise here would be lost too
+                self._send_again()
+                return
+            self._again = False
+            if not self._ended:
+                raise self._interrupt()
+            return
         if self.signum is not None:
             if self.signum == -1 and self.late is None:
                 self.late = signum
@@ -76,7 +138,32 @@ class StopPolicy:
             return
         self.signum = signum
         _say(f"{self.program}: {signal_name(signum)}: {self.what}")
-        raise Interrupted(signum)
+        raise self._interrupt()
+
+    def raise_if_lost(self) -> None:
+        """Between two checks: a first signal came but its ``Interrupted`` never reached pytest (pytest's
+        own unraisable-exception catcher took it during a check): raise it now."""
+        if self.stopped_by is not None and not self._ended:
+            self._again = False
+            raise self._interrupt()
+
+    def _send_again(self) -> None:
+        """The first signal once more, from a bare helper thread (``threading.Thread.start`` would wait
+        for it, and the signal could land inside that wait)."""
+        if self._ended or self.signum is None or self.signum < 0:
+            return
+        self._again = True
+        _thread.start_new_thread(os.kill, (os.getpid(), self.signum))
+
+    def _unraisable(self, info: Any) -> None:
+        """``sys.unraisablehook``: our ``Interrupted`` swallowed (a gc callback, a ``__del__``) is raised
+        again by sending the signal once more; anything else goes to the previous hook."""
+        if info.exc_value is None or info.exc_value is not self._raised:
+            (self._previous_unraisable or sys.__unraisablehook__)(info)
+            return
+        self._in_hook = True
+        self._send_again()
+        self._in_hook = False  # the last statement: nothing runs after it that could take the raise
 
     @property
     def interrupted_by(self) -> str | None:

@@ -1,14 +1,16 @@
 """``xac1 decode --batch DIR|GLOB... [--jobs N]``: an archive of captures, one conversation per file.
 
 How this works: each argument is a directory (its files, not recursive, hidden ones left out), a file, or
-a glob pattern; the files are decoded each on its own (exactly ``xac1 decode FILE``: the same format
+a glob pattern (what is not a regular file, a FIFO or a device, is left out and named on stderr); the
+files are decoded each on its own (exactly ``xac1 decode FILE``: the same format
 detection, options and summary), one process per file, at most ``--jobs`` at a time (default: the cores
 this process may run on), the largest files first, so an archive goes about as many times faster as there
 are cores. Printed in
 the order given: one row per file and a total (``--format jsonl``: a ``{"type":"file",...}`` line per file
 holding that file's summary record and exit status, then ``{"type":"total",...}``). Exit status: 2 when
 a file decoded nothing (missing, unknown format, no line data), else 1 when any file has violations or
-problems, else 0.
+problems, else 0. A file on which decoding raises (a bug) is one row with exit 2 and the error on
+stderr: the other files keep their rows.
 """
 
 from __future__ import annotations
@@ -19,12 +21,16 @@ import glob
 import io
 import json
 import os
+import stat
 import sys
+import traceback
 from collections import Counter
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
+
+from .io.base import shown
 
 _MESSAGES = "_stderr"  # a row's key for what decoding the file said on stderr (taken out before printing)
 _REFUSED = ("report", "annotate", "only_violations", "header")  # per-record options: not in a batch
@@ -38,22 +44,52 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
-def expand(specs: list[str]) -> tuple[list[str], list[str]]:
-    """(the files, in the order given without repeats; the arguments that matched nothing)."""
+def kind_of(path: Path) -> str:
+    """What a path that is not a regular file is, in words (for the message naming it)."""
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    for test, what in ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISDIR, "a directory")):
+        if test(mode):
+            return what
+    return "not a regular file"
+
+
+def expand(specs: list[str]) -> tuple[list[str], list[str], list[str]]:
+    """(the files, in the order given without repeats; what was wrong with an argument: one that matched
+    nothing, or names no regular file (each makes the batch exit 2); what was left out from a directory
+    or a pattern that is not a regular file: a FIFO, a device, a socket, which a batch does not read,
+    each named with why). Subdirectories of a directory are not entered, silently."""
     files: dict[str, None] = {}
-    unmatched: list[str] = []
+    wrong: list[str] = []
+    skipped: list[str] = []
+
+    def regular(p: Path, into: list[str]) -> bool:
+        if p.is_file():
+            return True
+        if into is wrong or not p.is_dir():
+            into.append(f"{p}: skipped: {kind_of(p)}, not a regular file (a batch reads files only; "
+                        f"decode it on its own: xac1 decode {p})")
+        return False
+
     for spec in specs:
         path = Path(spec)
         if path.is_dir():
-            found = sorted(str(p) for p in path.iterdir() if p.is_file() and not p.name.startswith("."))
-        elif path.is_file():
-            found = [spec]
+            found = sorted(str(p) for p in path.iterdir()
+                           if not p.name.startswith(".") and regular(p, skipped))
+        elif path.exists():
+            found = [spec] if regular(path, wrong) else []
+            if not found:
+                continue
         else:
-            found = sorted(p for p in glob.glob(spec) if Path(p).is_file())
+            found = sorted(p for p in glob.glob(spec) if regular(Path(p), skipped))
         if not found:
-            unmatched.append(spec)
+            wrong.append(f"{spec}: no file matches (a directory, a file or a glob pattern)")
         files.update(dict.fromkeys(found))
-    return list(files), unmatched
+    return list(files), wrong, skipped
 
 
 Decode = Callable[[argparse.Namespace, list[dict[str, Any]]], int]
@@ -67,7 +103,13 @@ def decode_one(path: str, args: argparse.Namespace, decode: Decode) -> dict[str,
     summaries: list[dict[str, Any]] = []
     messages = io.StringIO()  # kept with the row: printed in file order, never interleaved
     with contextlib.redirect_stderr(messages):
-        status = decode(one, summaries)
+        try:
+            status = decode(one, summaries)
+        except Exception as exc:  # a bug met on this file: its row says so, the other files go on
+            status = 2
+            traceback.print_exc(file=messages)
+            print(f"xac1 decode: {path}: internal error ({type(exc).__name__}: {shown(str(exc), 200)}), "
+                  f"this file's row is incomplete; please report it with the file", file=messages)
     row: dict[str, Any] = {"type": "file", "file": path, "exit": status}
     if summaries:
         row.update((k, v) for k, v in summaries[0].items() if k != "type")
@@ -113,10 +155,9 @@ def run(args: argparse.Namespace, decode: Decode) -> int:
               f"work on one capture only", file=sys.stderr)
         return 2
     jobs = args.jobs or default_jobs()
-    files, unmatched = expand(args.files)
-    for spec in unmatched:
-        print(f"xac1 decode: {spec}: no file matches (a directory, a file or a glob pattern)",
-              file=sys.stderr)
+    files, wrong, skipped = expand(args.files)
+    for message in wrong + skipped:
+        print(f"xac1 decode: {message}", file=sys.stderr)
     if not files:
         return 2
     if jobs == 1 or len(files) == 1:
@@ -141,6 +182,6 @@ def run(args: argparse.Namespace, decode: Decode) -> int:
         t = all_rows[-1]
         print(_row_text(f"total ({t['files']} files, {t['failed']} failed)", "", t, ""))
     sys.stdout.flush()
-    if unmatched or any(r["exit"] == 2 for r in rows):
+    if wrong or any(r["exit"] == 2 for r in rows):
         return 2
     return 1 if any(r["exit"] for r in rows) else 0

@@ -4,7 +4,9 @@
 system clock is set. ``Session`` takes each chunk as it is seen: feeds the analyzer, writes the chunk to
 the recording with the verdicts it completed (a pcapng recording keeps them as comments; written even
 when the analysis fails, so a crash loses nothing) and prints the records; ``close()`` flushes, prints the
-summary and closes the recording. ``sniff`` is the tap loop: ``select`` over the two receive-only taps,
+summary and closes the recording. When standard output goes away (``xac1 proxy | tee log`` and the
+Ctrl-C that ends both), records are no longer printed; the recording, the report and the summary (then
+on stderr) are still written. ``sniff`` is the tap loop: ``select`` over the two receive-only taps,
 chunks put back in cause-and-effect order (``order.CausalOrder``: two taps deliver with different
 delays) and judged at the time their poll began (a slow sniffer sees late, never out of order), a
 tick every ``TICK_S`` for missed answers, framing-error marks kept (``Chunk.error``), and a clear
@@ -13,6 +15,8 @@ message when a tap goes away (with ``reconnect``: retried every ``RETRY_S`` whil
 
 from __future__ import annotations
 
+import functools
+import os
 import select
 import threading
 import time
@@ -29,7 +33,7 @@ from .io.pcapng_writer import JsonlRecorder, Recorder
 from .order import CausalOrder
 from .records import Record
 from .taps import PortGone, ReadOnlyPort
-from .view import View
+from .view import View, make_view
 
 TICK_S = 0.05
 RETRY_S = 0.5
@@ -50,18 +54,40 @@ class Session:
     """Recording, analyzer and view for one run; see the module docstring."""
 
     def __init__(self, analyzer: Analyzer, view: View, recorder: Recorder | RecordingWriter | None = None,
-                 on_record: Callable[[Record], None] | None = None) -> None:
+                 on_record: Callable[[Record], None] | None = None, *, output: IO[str] | None = None,
+                 err: IO[str] | None = None, program: str = "xac1") -> None:
         self.analyzer = analyzer
         self.view = view
         if isinstance(recorder, RecordingWriter):  # a JSON lines writer opened by hand
             recorder = JsonlRecorder.around(recorder)
         self.recorder = recorder
         self.on_record = on_record
+        self.output = output  # the stream the view writes to (standard output), when known
+        self.err = err
+        self.program = program
+        self.output_gone = False  # the view's reader went away (``| tee`` ended by the same Ctrl-C)
         self.closed = False
+
+    def _show(self, show: Callable[[], None]) -> None:
+        """Run one view call; when its reader has gone away (a closed pipe), stop printing and go on:
+        the recording, the report and (on ``err``) the summary are still written."""
+        if self.output_gone:
+            return
+        try:
+            show()
+        except BrokenPipeError:
+            self.output_gone = True
+            if self.output is not None:
+                _discard(self.output)  # the interpreter's last flush of it must not fail either
+            if self.err is not None:
+                self.err.write(f"{self.program}: standard output went away (its pipe was closed): records "
+                               f"are no longer printed; the recording and the report go on, the summary "
+                               f"follows here\n")
+                self.err.flush()
 
     def _out(self, records: list[Record]) -> None:
         for r in records:
-            self.view.write(r)
+            self._show(functools.partial(self.view.write, r))
             if self.on_record is not None:
                 self.on_record(r)
 
@@ -91,10 +117,25 @@ class Session:
                 self.recorder.verdicts(records, now)
             self._out(records)
             if summary:
-                self.view.summary(self.analyzer.summary())
+                self._show(lambda: self.view.summary(self.analyzer.summary()))
+                if self.output_gone and self.err is not None:
+                    make_view("text", self.err, color=False).summary(self.analyzer.summary())
         finally:
             if self.recorder is not None:
                 self.recorder.close()
+
+
+def _discard(stream: IO[str]) -> None:
+    """Point ``stream``'s file descriptor at the null device (what is still buffered is dropped there)."""
+    try:
+        fd = stream.fileno()
+        null = os.open(os.devnull, os.O_WRONLY)
+    except (OSError, ValueError, AttributeError):
+        return
+    try:
+        os.dup2(null, fd)
+    finally:
+        os.close(null)
 
 
 def _open(path: str, name: str, baud: int) -> ReadOnlyPort:

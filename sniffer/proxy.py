@@ -187,7 +187,7 @@ class Proxy:
                     dev.close()
                 return
             self.device = dev
-        self._say(f"device port {self.device_port}: back, resuming")
+        self._say(f"xac1 proxy: device port {self.device_port}: back, resuming")
 
     def _gone(self, dev: serial.SerialBase, exc: BaseException) -> None:
         """A read from ``dev`` failed: close it and say so, unless it was closed or replaced meanwhile."""
@@ -231,7 +231,7 @@ class Proxy:
                     return
                 except (serial.SerialException, OSError) as exc:
                     problem = f"not delivered: {exc}"
-        self._say(f"warning: {len(data)} host bytes {problem}")
+        self._say(f"xac1 proxy: warning: {len(data)} host bytes {problem}")
 
     def run(self, stop: StopRequest | None = None) -> int:
         stop = stop or threading.Event()
@@ -250,7 +250,7 @@ class Proxy:
                     except queue.Empty:
                         break
                     if isinstance(item, PortGone):
-                        self._say(f"error: {item}; everything seen so far is kept"
+                        self._say(f"xac1 proxy: error: {item}; everything seen so far is kept"
                                   + ("; waiting for it to come back" if self.reconnect else ""))
                         if not self.reconnect:
                             return 1

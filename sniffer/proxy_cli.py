@@ -47,15 +47,15 @@ def run(args: argparse.Namespace) -> int:
     from .taps import PortGone
 
     if args.link and not args.pty:
-        print("error: --link goes with --pty", file=sys.stderr)
+        print("xac1 proxy: error: --link goes with --pty", file=sys.stderr)
         return 2
     with OrderlyEnd("xac1 proxy", "stopping: the summary follows") as end:
         try:
             host_side = "--pty" + (f" --link {args.link}" if args.link else "") if args.pty else \
                 f"--tcp {args.tcp[0]}:{args.tcp[1]}"
-            session = make_session(args, f"xac1 proxy --device {args.device} {host_side}")
+            session = make_session(args, f"xac1 proxy --device {args.device} {host_side}", "xac1 proxy")
         except ValueError as exc:
-            print(f"error: {exc}", file=sys.stderr)
+            print(f"xac1 proxy: error: {exc}", file=sys.stderr)
             return 2
         except Interrupted as exc:
             print(f"xac1 proxy: stopped by {exc.name} before it was forwarding", file=sys.stderr)
@@ -67,19 +67,19 @@ def run(args: argparse.Namespace) -> int:
             try:
                 host = PtyHost(args.link, args.baud) if args.pty else TcpHost(*args.tcp)
             except OSError as exc:
-                print(f"error: cannot offer the host side: {exc}", file=sys.stderr)
+                print(f"xac1 proxy: error: cannot offer the host side: {exc}", file=sys.stderr)
                 return 1
             try:
                 proxy = Proxy(host, args.device, session, clock, baud=args.baud,
                               reconnect=args.reconnect, err=sys.stderr)
             except PortGone as exc:
                 host.close()
-                print(f"error: {exc}", file=sys.stderr)
+                print(f"xac1 proxy: error: {exc}", file=sys.stderr)
                 return 1
             where = (f"pty {host.path}" + (f" (link {args.link})" if args.link else "")
                      if isinstance(host, PtyHost) else f"tcp {host.address[0]}:{host.address[1]}")
             end.begin()
-            print(f"proxy: host side on {where}; device {args.device}; Ctrl-C to stop", file=sys.stderr,
+            print(f"xac1 proxy: host side on {where}; device {args.device}; Ctrl-C to stop", file=sys.stderr,
                   flush=True)
             code = proxy.run(end.stop)
         except Interrupted as exc:  # only before it was forwarding (after, a signal sets end.stop)

@@ -52,7 +52,8 @@ def open_recording(path: str, source: str, fmt: str | None = None):  # -> Record
         raise ValueError(f"cannot write the recording {path}: {exc.strerror or exc}") from None
 
 
-def make_session(args: argparse.Namespace, source: str):  # -> live.Session (import kept lazy)
+def make_session(args: argparse.Namespace, source: str,
+                 program: str = "xac1 sniff"):  # -> live.Session (import kept lazy)
     import sys
 
     from .analyzer import Analyzer
@@ -76,8 +77,10 @@ def make_session(args: argparse.Namespace, source: str):  # -> live.Session (imp
     analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit)
     if report is not None:
         from .report.live import ReportingSession
-        return ReportingSession(analyzer, make_view(args.format, sys.stdout, args.color), recorder, report)
-    return Session(analyzer, make_view(args.format, sys.stdout, args.color), recorder)
+        return ReportingSession(analyzer, make_view(args.format, sys.stdout, args.color), recorder, report,
+                                output=sys.stdout, err=sys.stderr, program=program)
+    return Session(analyzer, make_view(args.format, sys.stdout, args.color), recorder, output=sys.stdout,
+                   err=sys.stderr, program=program)
 
 
 def _started_event(end):  # (end: OrderlyEnd) -> threading.Event (imports kept lazy)

@@ -55,11 +55,12 @@ def rows(out: str) -> list[dict]:
 
 
 def test_expand_takes_directories_files_and_globs_in_order_without_repeats(archive):
-    files, unmatched = expand([str(archive / "c-clean.pcapng"), str(archive), str(archive / "b-*"),
-                               str(archive / "nothing-*")])
+    files, wrong, skipped = expand([str(archive / "c-clean.pcapng"), str(archive), str(archive / "b-*"),
+                                    str(archive / "nothing-*")])
     names = [Path(f).name for f in files]
     assert names == ["c-clean.pcapng", "a-clean.pcapng", "b-silent.pcapng"]
-    assert unmatched == [str(archive / "nothing-*")]
+    assert wrong == [f"{archive / 'nothing-*'}: no file matches (a directory, a file or a glob pattern)"]
+    assert skipped == []
 
 
 @pytest.mark.parametrize("jobs", ["1", "2"])

@@ -5,7 +5,6 @@ a client that writes but never reads, absurd option values, a loop that dies, an
 from __future__ import annotations
 
 import contextlib
-import os
 import resource
 import signal
 import socket
@@ -188,35 +187,33 @@ def test_signal_ends_in_order_with_the_state_file_written(tmp_path: Path, sig: i
     assert load_state(state) == {1: PointData(1, 1, 0, 0x100), 5: PointData(9, 3, 0, 0x12345)}
 
 
+_SIGNAL_ON_OPEN = """
+import os, signal, sys
+path = sys.argv[1]
+fired = []
+def hook(event, args):  # SIGTERM to itself as the simulator opens its state file to read it
+    if event == "open" and str(args[0]) == path and not fired:
+        fired.append(1)
+        os.kill(os.getpid(), signal.SIGTERM)
+sys.addaudithook(hook)
+sys.argv = ["xac1", "sim", "--tcp", "0", "--state", path]
+from xac1_proto.entry import main
+sys.exit(main())
+"""
+
+
 def test_signal_before_serving_ends_quietly_with_exit_2(tmp_path: Path) -> None:
-    """A signal during start-up (here: the state file is a FIFO whose writer never writes, so the
-    simulator waits for it) ends quietly: one line, exit 2, nothing served."""
-    fifo = tmp_path / "table.json"
-    os.mkfifo(fifo)
-    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "sim", "--tcp", "0", "--state", str(fifo)],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
-    try:
-        deadline = time.monotonic() + 30
-        while True:  # the FIFO opens for writing once the simulator opened it for reading
-            try:
-                fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
-                break
-            except OSError:
-                assert time.monotonic() < deadline and proc.poll() is None
-                time.sleep(0.02)
-        try:
-            proc.send_signal(signal.SIGTERM)
-            out, err = proc.communicate(timeout=TIMEOUT)
-        finally:
-            os.close(fd)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    """A signal during start-up (here: sent by the process itself, from an audit hook, as the simulator
+    opens its state file to read it) ends quietly: one line, exit 2, nothing served. (A FIFO as the state
+    file, which this test used to block the start, is now refused before the start.)"""
+    state = tmp_path / "table.json"
+    save_state(state, {1: PointData(1, 1, 0, 0x100)})
+    proc = subprocess.run([sys.executable, "-c", _SIGNAL_ON_OPEN, str(state)], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=30)
     assert proc.returncode == 2
-    assert out == ""
-    assert err.strip() == "xac1 sim: stopped by SIGTERM before it was serving"
+    assert proc.stdout == ""
+    assert proc.stderr.strip() == "xac1 sim: stopped by SIGTERM before it was serving"
+    assert load_state(state) == {1: PointData(1, 1, 0, 0x100)}
 
 
 def test_a_second_signal_does_not_cut_the_ending_short(tmp_path: Path) -> None:

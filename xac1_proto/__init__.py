@@ -10,7 +10,10 @@ and ``xac1_proto.Client`` still works. The ``xac1sim://`` URL handler registers 
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+
+TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (``xac1`` starts faster)
+if TYPE_CHECKING:
+    from typing import Any
 
 __version__ = "0.1.0"
 

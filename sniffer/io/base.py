@@ -133,34 +133,43 @@ class Source:
             return data + self._f.read(n - len(data))
         return self._f.read(n)
 
-    def _raw_readline(self, limit: int) -> bytes:
+    def _raw_readline(self, limit: int, end: bytes = b"\n") -> bytes:
         if self._buffered:
             start = len(self._head) - self._buffered
-            end = self._head.find(b"\n", start, start + limit)
-            if end >= 0:
-                data = self._head[start:end + 1]
+            stop = self._head.find(end, start, start + limit)
+            if stop >= 0:
+                data = self._head[start:stop + 1]
                 self._buffered -= len(data)
                 return data
             data = self._head[start:start + limit]
             self._buffered -= len(data)
             if len(data) == limit:
                 return data
-            return data + self._f.readline(limit - len(data))
-        return self._f.readline(limit)
+            return data + _readline(self._f, limit - len(data), end)
+        return _readline(self._f, limit, end)
 
-    def lines(self) -> Iterator[tuple[int, str]]:
-        """(line number, text without its line end) for each line; bytes read as latin-1 so no byte is
-        ever a decoding error. A line longer than ``MAX_LINE`` comes in pieces with the same number."""
+    def line_end(self) -> bytes:
+        """``b"\\r"`` when the file's first line ends with a CR alone (old Mac style, as some exports on
+        other systems write), else ``b"\\n"`` (LF or CR LF)."""
+        head = self.head()
+        cr, lf = head.find(b"\r"), head.find(b"\n")
+        alone = cr >= 0 and (lf < 0 or cr < lf) and head[cr + 1:cr + 2] not in (b"\n", b"")
+        return b"\r" if alone else b"\n"
+
+    def lines(self, end: bytes = b"\n") -> Iterator[tuple[int, str]]:
+        """(line number, text without its line end) for each line ending with ``end`` (LF, which reads
+        CR LF too; or CR, see ``line_end``); bytes read as latin-1 so no byte is ever a decoding error.
+        A line longer than ``MAX_LINE`` comes in pieces with the same number."""
         number = 0
         continued = False
         while True:
-            raw = self._raw_readline(MAX_LINE)
+            raw = self._raw_readline(MAX_LINE, end)
             if not raw:
                 return
             self.pos += len(raw)
             if not continued:
                 number += 1
-            continued = not raw.endswith(b"\n")
+            continued = not raw.endswith(end)
             self.unterminated = number if continued else None
             yield number, raw.decode("latin-1").rstrip("\r\n")
 
@@ -212,6 +221,36 @@ class Source:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _readline(f: IO[bytes], limit: int, end: bytes = b"\n") -> bytes:
+    """One line of at most ``limit`` bytes ending with ``end`` (included), or what is left at the end."""
+    if end == b"\n":
+        return f.readline(limit)
+    parts: list[bytes] = []
+    while limit > 0:
+        ahead = f.peek(1)[:limit]  # type: ignore[attr-defined]  # buffered readers (every Source file)
+        if not ahead:
+            break
+        stop = ahead.find(end)
+        data = f.read(stop + 1 if stop >= 0 else len(ahead))
+        parts.append(data)
+        limit -= len(data)
+        if stop >= 0:
+            break
+    return b"".join(parts)
+
+
+def numbered_lines(f: IO[bytes]) -> Iterator[tuple[int, str]]:
+    """``Source.lines`` of a file opened apart (``Source.reopen``): pieces of at most ``MAX_LINE`` bytes,
+    so a line without end (a binary file, a cut export) never has to fit in memory whole."""
+    number = 0
+    continued = False
+    while raw := f.readline(MAX_LINE):
+        if not continued:
+            number += 1
+        continued = not raw.endswith(b"\n")
+        yield number, raw.decode("latin-1").rstrip("\r\n")
 
 
 def _read_full(f: IO[bytes], n: int) -> bytes:
@@ -315,10 +354,13 @@ MAX_TIME: Final = float(1 << 32)
 
 def time_problem(t: float) -> str | None:
     """Why ``t`` (seconds) cannot be a capture time, or None when it can."""
+    expected = f"expected {MIN_TIME:.0f} to {MAX_TIME:.0f} s"
+    if isinstance(t, int) and not MIN_TIME <= t < MAX_TIME:  # an integer too large for a float, too
+        return f"time {shown(str(t), 24)} s is out of range ({expected})"
     if not math.isfinite(t):
         return f"time {t!r} is not a number of seconds"
     if not MIN_TIME <= t < MAX_TIME:
-        return f"time {t!r} s is out of range (expected {MIN_TIME:.0f} to {MAX_TIME:.0f} s)"
+        return f"time {t!r} s is out of range ({expected})"
     return None
 
 
@@ -337,8 +379,8 @@ class Clock:
         if why is not None:
             self.report.problem(where, f"{why}; the bytes are kept with the previous time")
             return self.last
-        self.last = t
-        return t
+        self.last = float(t)
+        return self.last
 
 
 def wallclock(date: str, clock: str) -> float:

@@ -97,7 +97,7 @@ def _decoded(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
             error = errors[0] if isinstance(errors, list) and errors else None
             if error is not None and not isinstance(error, str):
                 raise ValueError("line_errors must be a list of strings")
-            t = clock.check(float(t), src.where(number)) if t is not None else None
+            t = clock.check(t, src.where(number))
             yield Chunk(t, obj["dir"], bytes.fromhex(obj["raw"]), error)
         except (ValueError, KeyError, TypeError, AttributeError) as exc:
             report.problem(src.where(number), f"malformed decoded record ({exc})", nlines=1)

@@ -138,7 +138,7 @@ def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
     own = sides is None
     sides = sides or Sides(FORMAT, host_is)
     report = src.report
-    lines = src.lines()
+    lines = src.lines(src.line_end())  # CR-only line ends, as some exports on other systems write
     first = next(lines, None)
     if first is None:
         report.problem(src.name, "empty file")

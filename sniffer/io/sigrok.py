@@ -28,7 +28,7 @@ from typing import Final
 from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 
-from .base import Clock, FormatError, Report, Source, shown
+from .base import Clock, FormatError, Report, Source, numbered_lines, shown
 
 FORMAT: Final = "sigrok"
 DESCRIPTION: Final = "sigrok-cli UART annotations (-A uart=rx-data)"
@@ -100,8 +100,7 @@ def read(src: Source, host_is: str | None = None, samplerate: float | None = Non
 
 def _extra_lines(src: Source) -> Iterator[tuple[int, str]]:
     with src.reopen() as f:
-        for number, raw in enumerate(f, 1):
-            yield number, raw.decode("latin-1").rstrip("\r\n")
+        yield from numbered_lines(f)
 
 
 def _annotations(src: Source, lines: Iterator[tuple[int, str]], instances: set[str], only: str | None,
@@ -218,8 +217,8 @@ def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
     classes: set[str] = set()
     spans: list[int] = []
     with src.reopen() as f:
-        for raw in islice(f, _PRESCAN):
-            m = _LINE.fullmatch(raw.decode("latin-1").rstrip("\r\n"))
+        for _number, line in islice(numbered_lines(f), _PRESCAN):
+            m = _LINE.fullmatch(line)
             if m:
                 instances.add(m.group(3))
                 if m.group(4):

@@ -15,7 +15,6 @@ MB installed), hence the optional extra; nothing else in the project imports it.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -38,21 +37,14 @@ def require_plotly() -> None:
 
 
 def check_writable(path: str | os.PathLike[str]) -> Path:
-    """The report's path, once sure it can be written (its folder exists and takes a new file)."""
-    target = Path(path)
-    if target.is_dir():
-        raise ReportError(f"cannot write the report {path}: it is a directory")
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise ReportError(f"cannot write the report {path}: no such folder {folder}")
-    if target.exists() and not os.access(target, os.W_OK):
-        raise ReportError(f"cannot write the report {path}: permission denied")
+    """The file to write for the report's path (through a symbolic link, to its target), once sure it
+    can be written as a regular file: never a directory, FIFO or device (``xac1_proto.output_file``)."""
+    from xac1_proto.output_file import OutputFileError, check_output
+
     try:
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=f".{target.name}.", suffix=".tmp"):
-            pass
-    except OSError as exc:
-        raise ReportError(f"cannot write the report {path}: {exc.strerror or exc}") from None
-    return target
+        return check_output(path, "cannot write the report")
+    except OutputFileError as exc:
+        raise ReportError(str(exc)) from None
 
 
 class SessionReport:

@@ -4,6 +4,7 @@ when the session closes (the run's end, Ctrl-C, SIGTERM, a tap gone for good).""
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 from xac1_proto.recording import RecordingWriter
 
@@ -17,8 +18,9 @@ class ReportingSession(Session):
     """``live.Session`` that feeds a ``SessionReport`` and writes it on ``close``."""
 
     def __init__(self, analyzer: Analyzer, view: View, recorder: RecordingWriter | None,
-                 report: SessionReport) -> None:
-        super().__init__(analyzer, view, recorder, on_record=report.add)
+                 report: SessionReport, **shell: Any) -> None:
+        """``shell``: ``Session``'s ``output``, ``err`` and ``program``."""
+        super().__init__(analyzer, view, recorder, on_record=report.add, **shell)
         self.report = report
 
     def close(self, now: float | None, summary: bool = True) -> None:
@@ -31,6 +33,7 @@ class ReportingSession(Session):
                 try:
                     path = self.report.write(self.analyzer.summary())
                     print(f"report written to {path}", file=sys.stderr)
-                except OSError as exc:
-                    print(f"error: cannot write the report {self.report.path}: {exc.strerror or exc}",
+                except (OSError, ValueError) as exc:  # ValueError: no longer a regular file
+                    print(f"error: cannot write the report {self.report.path}: "
+                          f"{getattr(exc, 'strerror', None) or exc}",
                           file=sys.stderr)

@@ -8,13 +8,12 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import os
-import tempfile
-from pathlib import Path
 from typing import Any
 
 from markupsafe import Markup
 
 from xac1_proto import spec
+from xac1_proto.output_file import write_output
 from xac1_proto.pages import render
 
 from . import plots
@@ -104,16 +103,6 @@ def render_page(agg: SessionAggregator, title: str = "XA-C1 session report") -> 
 
 
 def write_page(path: str | os.PathLike[str], text: str) -> None:
-    """Write atomically: a temporary file beside ``path``, then a rename (no half-written report)."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # as an ordinary new file (mkstemp makes it private)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write atomically to the file ``path`` names (through a link, to its target): a temporary file
+    beside it, then a rename (no half-written report, never a FIFO or device replaced)."""
+    write_output(path, text)

@@ -140,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
     from ..chunk import Chunk
     from ..errors import XAC1Error
+    from ..output_file import check_output
     from .config import DEVIATIONS, config_from_options
     from .model import DeviceModel
     from .runner import serve_pty, serve_tcp
@@ -154,6 +155,8 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
     try:
         config = config_from_options(_options(args))
         address = _tcp_address(args.tcp) if args.tcp else None
+        if args.state:  # a regular file (or a link to one), checked before anything starts
+            check_output(args.state, "--state")
         points = load_state(args.state) if args.state else {}
     except (ValueError, XAC1Error) as exc:
         return _fail(str(exc))
@@ -166,7 +169,7 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
     def save(m: DeviceModel) -> None:
         try:
             save_state(args.state, m.points)
-        except OSError as exc:
+        except (OSError, ValueError) as exc:  # ValueError: OutputFileError, it is no longer a file
             save_errors.append(str(exc))
             print(f"xac1 sim: error: cannot write the state file {args.state}: {exc}", file=sys.stderr)
 

@@ -1,8 +1,9 @@
 """The position table on disk (docs/protocol.md silent item 16): the simulator's non-volatile memory.
 
 File format (JSON): ``{"format": "xac1sim-state", "version": 1, "points": {"1": {"v": 9, "a": 3,
-"o": 0, "pos": 74565}, ...}}`` (only written points). ``save_state`` writes atomically: a temporary file
-in the same directory, flushed and fsynced, renamed over the old one, then the directory fsynced; a
+"o": 0, "pos": 74565}, ...}}`` (only written points). ``save_state`` writes atomically
+(``output_file.write_output``): a temporary file beside the file the path names (through a symbolic
+link: the link stays), flushed and fsynced, renamed over the old one, then the directory fsynced; a
 crash at any moment leaves the old or the new file, never a torn one. ``load_state`` raises
 ``StateFileError`` (what is wrong, where) for a file that is not ours or is corrupt; the caller must then
 stop rather than overwrite it. A missing file is an empty table.
@@ -18,6 +19,7 @@ from typing import Final
 
 from .. import spec
 from ..errors import XAC1Error
+from ..output_file import write_output
 from .model import PointData
 
 FORMAT: Final = "xac1sim-state"
@@ -79,21 +81,7 @@ def dump_state(points: Mapping[int, PointData]) -> str:
 
 
 def save_state(path: str | os.PathLike[str], points: Mapping[int, PointData]) -> None:
-    """Write the table atomically (see the module docstring)."""
-    p = Path(path)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
-    data = dump_state(points).encode("utf-8")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-    try:
-        view = memoryview(data)
-        while view:
-            view = view[os.write(fd, view):]
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    os.replace(tmp, p)
-    dir_fd = os.open(p.parent if str(p.parent) else ".", os.O_RDONLY)
-    try:
-        os.fsync(dir_fd)
-    finally:
-        os.close(dir_fd)
+    """Write the table atomically and durably to the file ``path`` names (through a symbolic link, to
+    its target: the link stays); see the module docstring. ``OutputFileError`` (a ``ValueError``) when
+    ``path`` names something that is not a regular file, ``OSError`` when the write fails."""
+    write_output(path, dump_state(points), durable=True)
