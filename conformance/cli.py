@@ -3,7 +3,7 @@
 The suite is the ``conformance.checks`` package; this runs it with pytest in-process, isolated from
 whatever pytest configuration the current directory has, with pytest's own terminal output off: the
 operator reads the suite's words only (a live progress line, then the summary and the verdict, which is
-always printed). Exit status (README "Conformance"): 0 conforms, 1 a check failed, 2 bad options or
+always printed). Exit status (docs/conformance.md): 0 conforms, 1 a check failed, 2 bad options or
 interrupted (Ctrl-C, SIGTERM, SIGHUP: the device is restored first), 3 the run could not go on, 4
 incomplete (checks of stated rules not run; ``--allow-incomplete`` makes it 0).
 """

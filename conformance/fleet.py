@@ -342,63 +342,98 @@ def _usb_serials() -> dict[str, str]:
 
 
 def gather(d: Device, interrupted: bool) -> None:
-    """The device's verdict from its exit status, its verdict line and its JUnit file."""
-    text = d.text()
-    lines = text.splitlines()
-    for line in reversed(lines):
-        if m := _VERDICT.match(line):
-            d.verdict_line = m.group(1)
-            break
-    d.failed = [(m.group(1), m.group(2)) for line in lines if (m := _FAILED.match(line))]
-    d.safety = [line.strip() for line in lines if _UNSAFE.match(line)]
-    if m2 := next((m for line in lines if (m := _STOPPED.match(line))), None):
-        d.reason = m2.group(1)
-    props: dict[str, str] = {}
-    junit_failed: list[tuple[str, str]] = []
-    with contextlib.suppress(OSError, ET.ParseError):
-        root = ET.parse(d.junit).getroot()
-        props = {p.get("name", ""): p.get("value", "") for p in root.iter("property")
-                 if p.get("name") and p.get("value") is not None}
-        for tc in root.iter("testcase"):
-            bad = tc.find("failure")
-            if bad is None:
-                bad = tc.find("error")
-            if bad is not None:
-                name = tc.get("name", "?")
-                junit_failed.append((name[5:] if name.startswith("test_") else name,
-                                     (bad.get("message") or "").strip()))
+    """The device's verdict from its exit status, its verdict line and its JUnit file.
+
+    In four steps: what the child printed (verdict line, FAIL lines, safety lines, why it stopped), what
+    its JUnit file holds (properties, failed test cases), who the device is (firmware, unit id), and the
+    verdict with its reason when the device could not be tested."""
+    lines = d.text().splitlines()
+    _read_output(d, lines)
+    props, junit_failed = read_junit(d.junit)
     if not d.failed:
         d.failed = junit_failed
+    _identify(d, lines, props)
+    d.verdict = _verdict(d, interrupted)
+    if d.killed:
+        d.reason = (f"did not stop within {STOP_GRACE_S:g} s of the interrupt and was killed: its device "
+                    f"may not be restored")
+    elif d.verdict == NOT_TESTED and not d.reason:
+        d.reason = _untested_reason(d.status, d.verdict_line)
+    if d.verdict == NOT_TESTED and d.verdict_line:
+        d.reason = _headed(d.reason, d.verdict_line)
+
+
+def _read_output(d: Device, lines: Sequence[str]) -> None:
+    """From the child's output: its last verdict line, its FAIL/ERROR lines, the lines saying a restore
+    failed, and the reason it gave when the run stopped early."""
+    d.verdict_line = next((m.group(1) for line in reversed(lines) if (m := _VERDICT.match(line))),
+                          d.verdict_line)
+    d.failed = [(m.group(1), m.group(2)) for line in lines if (m := _FAILED.match(line))]
+    d.safety = [line.strip() for line in lines if _UNSAFE.match(line)]
+    d.reason = next((m.group(1) for line in lines if (m := _STOPPED.match(line))), d.reason)
+
+
+def read_junit(path: Path) -> tuple[dict[str, str], list[tuple[str, str]]]:
+    """A JUnit file's suite properties and its failed or erroring test cases as (check, message), the
+    ``test_`` prefix dropped; nothing when the file is missing or unreadable."""
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError):
+        return {}, []
+    props = {p.get("name", ""): p.get("value", "") for p in root.iter("property")
+             if p.get("name") and p.get("value") is not None}
+    failed = []
+    for tc in root.iter("testcase"):
+        bad = tc.find("failure")
+        if bad is None:
+            bad = tc.find("error")
+        if bad is not None:
+            name = tc.get("name", "?")
+            failed.append((name.removeprefix("test_"), (bad.get("message") or "").strip()))
+    return props, failed
+
+
+def _identify(d: Device, lines: Sequence[str], props: dict[str, str]) -> None:
+    """The firmware (JUnit property, else the child's summary) and the unit id (the ports file, else a
+    JUnit property, else the USB serial number found before the run)."""
     d.firmware = props.get("firmware") or next(
         (m.group(1) for rx in _FIRMWARE for line in lines if (m := rx.match(line))), None)
     d.unit = (d.target.unit or props.get("unit-id") or props.get("unit_id") or props.get("unit")
               or props.get("serial") or d.unit)
+
+
+def _verdict(d: Device, interrupted: bool) -> str:
+    """The exit status read as a verdict; exit 1 counts as a defect only with a verdict line (without
+    one the run crashed), exit 2 as an interrupt only when the fleet was interrupted."""
     status = d.status
     if d.killed:
-        d.verdict = NOT_TESTED
-        d.reason = (f"did not stop within {STOP_GRACE_S:g} s of the interrupt and was killed: its device "
-                    f"may not be restored")
-    elif status == 0:
-        d.verdict = CONFORMS
-    elif status == 1 and d.verdict_line:
-        d.verdict = NOT_CONFORM
-    elif status == 4:
-        d.verdict = INCOMPLETE
-    elif status == 2 and interrupted:
-        d.verdict = INTERRUPTED
-    else:
-        d.verdict = NOT_TESTED
-        if not d.reason:
-            head = d.verdict_line.split(":", 1)[0] if d.verdict_line else ""
-            if status is not None and status < 0:
-                why = f"the run was killed by signal {-status}"
-            elif head:
-                why = f"{head} (exit status {status})"
-            else:
-                why = f"the run ended without a verdict (exit status {status}); see its log"
-            d.reason = why
-    if d.verdict == NOT_TESTED and d.verdict_line and not d.reason.startswith(d.verdict_line.split(":")[0]):
-        d.reason = f"{d.verdict_line.split(':', 1)[0]}: {d.reason}"
+        return NOT_TESTED
+    if status == 0:
+        return CONFORMS
+    if status == 1 and d.verdict_line:
+        return NOT_CONFORM
+    if status == 4:
+        return INCOMPLETE
+    if status == 2 and interrupted:
+        return INTERRUPTED
+    return NOT_TESTED
+
+
+def _untested_reason(status: int | None, verdict_line: str) -> str:
+    """Why a device was not tested when its child gave no reason: a signal, its verdict's head, or no
+    verdict at all."""
+    head = verdict_line.split(":", 1)[0] if verdict_line else ""
+    if status is not None and status < 0:
+        return f"the run was killed by signal {-status}"
+    if head:
+        return f"{head} (exit status {status})"
+    return f"the run ended without a verdict (exit status {status}); see its log"
+
+
+def _headed(reason: str, verdict_line: str) -> str:
+    """``reason`` led by the verdict line's head (``THE DEVICE STOPPED ANSWERING: ...``) unless it is."""
+    head = verdict_line.split(":", 1)[0]
+    return reason if reason.startswith(head) else f"{head}: {reason}"
 
 
 def fleet_status(devices: Sequence[Device], interrupted: bool) -> int:

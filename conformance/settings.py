@@ -1,6 +1,6 @@
 """What a conformance run may do to the device: port, motion, safe range, fresh device, seed.
 
-The rules (README "Conformance"): the built-in simulator (a ``xac1sim://`` URL) may always move and is
+The rules (docs/conformance.md): the built-in simulator (a ``xac1sim://`` URL) may always move and is
 always fresh; a real device moves only with ``--xac1-allow-motion`` and a safe range, and only to
 positions inside that range; the power-on checks run only on a device declared fresh; on a real device
 the suite writes only points it can write back, plus those named with ``--xac1-scratch-points``.

@@ -6,7 +6,7 @@ not: it frames each direction with its own ``xac1_proto.Framer``, passes time al
 ``tick(now)``; a partial device frame that has been quiet for ``device_idle_flush`` comes out as junk,
 and one still arriving keeps its command's answer window open), keeps the capture tool's line errors
 (``Chunk.error``) with the bytes they flag (``line_errors`` on every record holding a flagged byte; they
-are not violations), and turns the engine's verdicts into the records of the README's JSON lines schema:
+are not violations), and turns the engine's verdicts into the records of docs/output.md's JSON lines schema:
 ``FrameRecord``, ``JunkRecord``, ``TimeoutRecord`` (``no-answer``), each with the side of each violation
 (``sides``), counted by ``Tally`` for the summary. Nothing here reads a clock.
 
@@ -223,7 +223,7 @@ class Analyzer:
 
 
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
-    """The record of one verdict (README "Sniffer" schema)."""
+    """The record of one verdict (the docs/output.md schema)."""
     if v.violations:
         details = tuple(x.message for x in v.violations)
         codes, sides = v.codes, v.sides

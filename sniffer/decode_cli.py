@@ -79,7 +79,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.epilog = ("host side by default: socat '>'; spy TX; interceptty '<'; jpnevulator the tty named host, "
                 "else the first to speak; saleae the file/analyzer named host, else the first file; sigrok "
                 "uart-1 (several decoder instances) or tx-data (one); pcap TX; raw the file named host, else "
-                "the first file. See README \"Decoding captures\".")
+                "the first file. See docs/captures.md.")
     add_capture_arguments(p)
     p.add_argument("--format", "-f", default="text", choices=("text", "jsonl", "summary"),
                    help="output: a line per frame (text), the JSON lines schema (jsonl), or only the summary")

@@ -1,6 +1,6 @@
 """What the analyzer reports: one record per frame, per junk run and per missed answer, then a summary.
 
-The records serialise to the pinned JSON lines schema (README "Sniffer"): ``FrameRecord`` ->
+The records serialise to the pinned JSON lines schema (docs/output.md): ``FrameRecord`` ->
 ``{"type":"frame",...}``, ``JunkRecord`` -> ``{"type":"junk",...}``, ``TimeoutRecord`` ->
 ``{"type":"timeout",...}`` (the one violation that no frame carries: ``no-answer``), and the ``Tally``
 that counts them gives the last line, ``{"type":"summary",...}``. Every record's ``sides`` lists, aligned

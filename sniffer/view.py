@@ -256,7 +256,7 @@ def _json_template(record: FrameRecord) -> tuple[str, ...] | None:
 
 
 class JsonlView:
-    """One JSON object a line (the README's schema), flushed as it goes when ``live`` (the sniffer);
+    """One JSON object a line (the docs/output.md schema), flushed as it goes when ``live`` (the sniffer);
     an offline decode (``live=False``) writes lines in batches and flushes after the summary. A line is
     exactly ``record.to_json()``; frame records' from a template of their content (module docstring)."""
 

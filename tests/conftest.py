@@ -6,9 +6,11 @@ How this works:
   names allowed; ``require_tool`` does the same inside a test). A missing tool SKIPS the test with a
   reason naming the Debian package, or FAILS it when the environment variable ``CI`` is set (any value
   but empty, ``0`` or ``false``): CI never skips a test silently.
-- Hypothesis profiles ``ci`` (derandomized, no deadline, no example database, failing blobs printed)
-  and ``dev`` (random, a database in ``.hypothesis/``, no deadline either: timing varies with load)
-  are registered here; ``HYPOTHESIS_PROFILE`` picks one, else ``ci`` under CI and ``dev`` otherwise.
+- Hypothesis profiles ``ci`` (derandomized, no deadline, no example database, failing blobs printed,
+  every test's full budget) and ``dev`` (random, a database in ``.hypothesis/``, no deadline either:
+  timing varies with load; a tenth of each budget, for the inner loop) are registered here;
+  ``HYPOTHESIS_PROFILE`` or ``--hypothesis-profile`` picks one, else ``ci`` under CI and ``dev``
+  otherwise. A test with its own budget writes ``@settings(max_examples=budget(N))``.
 - ``wait_until(predicate, timeout, what)`` replaces sleeping as synchronisation: it polls something the
   test can observe and fails saying what never happened.
 - ``gallery`` is ``captures/make_gallery.py`` (the scripted session, the capture makers).
@@ -142,11 +144,23 @@ def hypothesis_profile() -> str:
 
 # Both on hypothesis's own defaults (newer hypothesis loads a built-in "ci" profile by itself under CI,
 # and a profile's parent is otherwise whatever is loaded).
+# ``ci`` runs every test's full budget; ``dev`` (the inner loop) a tenth of it: hypothesis's default of
+# 100 examples becomes 10, and ``budget(N)`` scales a test's own budget alike.
+FULL_EXAMPLES = settings.get_profile("default").max_examples
 settings.register_profile("ci", settings.get_profile("default"), derandomize=True, deadline=None,
                           database=None, print_blob=True)
 settings.register_profile("dev", settings.get_profile("default"), derandomize=False, deadline=None,
-                          print_blob=False)
+                          print_blob=False, max_examples=FULL_EXAMPLES // 10)
 settings.load_profile(hypothesis_profile())
+
+
+def budget(full: int) -> int:
+    """A test's hypothesis budget: ``full`` examples under a profile of the full default budget (``ci``,
+    ``--hypothesis-profile ci``), scaled as the loaded profile scales the default otherwise (``dev``: a
+    tenth), never fewer than the profile's own ``max_examples`` nor more than ``full``. Called where the
+    test is decorated, so after ``--hypothesis-profile`` has been applied."""
+    current = settings().max_examples
+    return min(full, max(current, full * current // FULL_EXAMPLES))
 
 
 # ---- waiting ----

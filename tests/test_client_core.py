@@ -4,6 +4,7 @@ pyserial's loop:// port where a real port helps (what it sends comes back as the
 from __future__ import annotations
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -84,7 +85,7 @@ def test_garbage_and_grammar_violations_are_kept(loop_client):
     assert codes(ex.violations) == ["bad-length", "missing-2", "error-accepted"]
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=budget(50), deadline=None)
 @given(command=frames("command"), answer=frames("answer"))
 def test_mismatch_iff_other_header(command, answer):
     """Any well-formed answer: the alarm answer fits every command; otherwise the header must be the
@@ -162,7 +163,7 @@ def test_budget_known_move_is_motion_time():
     assert budget.estimate(fr.ReadVersion()) is None
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=budget(100), deadline=None)
 @given(start=st.integers(0, FULL_STROKE), target=st.integers(0, FULL_STROKE), v=st.integers(1, 9),
        a=st.integers(1, 3))
 def test_budget_unknown_is_never_less_than_known(start, target, v, a):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -131,7 +132,7 @@ def test_every_single_byte_change_is_a_frame_or_a_frame_error(frame, data):
         assert type(other)(**other.fields()) == other  # in range
 
 
-@settings(max_examples=500)
+@settings(max_examples=budget(500))
 @given(st.binary(max_size=40), st.sampled_from(spec.ROLES))
 def test_arbitrary_bytes_raise_only_frame_error_and_diagnose_never_raises(data, role):
     frame, violations = x.diagnose(data, role)

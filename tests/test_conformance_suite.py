@@ -165,7 +165,7 @@ def test_other_silent_choices_still_pass_over_tcp(tmp_path):
 
 def test_ctrl_c_restores_the_device(tmp_path):
     """Ctrl-C in the middle of the run (once the run has written a point) still restores and verifies
-    every point and the OUT ports; the exit status is 2 (README "Conformance")."""
+    every point and the OUT ports; the exit status is 2 (docs/conformance.md)."""
     with serve_tcp(OTHER_CHOICES) as sim:
         before, initial = read_table(sim.url), model_points(sim)
         proc = subprocess.Popen(

@@ -37,7 +37,7 @@ def reports(draw: st.DrawFn) -> Report:
 
 @given(reports(), st.booleans())
 def test_verdict_and_exit_status(rep: Report, allow_incomplete: bool) -> None:
-    """One head word and one exit status for each mix of outcomes, as the README's table says."""
+    """One head word and one exit status for each mix of outcomes, as docs/conformance.md's table says."""
     failed = any(r.verdict in (FAIL, ERROR) for r in rep.checks)
     missing = sum(r.verdict == SKIP for r in rep.checks) + rep.not_run + rep.deselected
     passed = sum(r.verdict == PASS for r in rep.checks)

@@ -154,6 +154,7 @@ def test_history_file_survives_sessions_and_ctrl_c_clears_the_line(tmp_path):
     assert child.exitstatus == 0
 
 
+@pytest.mark.slow  # starts a process
 def test_scripted_console_exits_4_when_its_port_goes_away():
     """A console driven from stdin whose port goes away ends at once with one line naming the port and
     exit 4: the rest of the script is not run as if it had been sent."""

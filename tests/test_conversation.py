@@ -5,6 +5,7 @@ and the verdicts do not depend on how a caller cut the bytes into chunks."""
 from __future__ import annotations
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -264,7 +265,7 @@ def _feed(items, cuts: int | None) -> list[tuple]:
     return [(v.kind, v.i, v.reply_to, v.codes, v.sides) for v in out]
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=budget(150), deadline=None)
 @given(events, st.integers(1, 7))
 def test_arbitrary_conversations_never_raise_and_chunking_never_changes_verdicts(items, cuts):
     """Any bytes both ways: verdicts come out (never an exception), the same fed whole or in pieces."""

@@ -6,6 +6,7 @@ items 18 and 19 (a refused 0CM0 leaves the mode; emergency stop during a move)."
 from __future__ import annotations
 
 import pytest
+from conftest import budget
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
@@ -98,7 +99,7 @@ class CleanSimulator(RuleBasedStateMachine):
         assert self.line.device_side() == []
 
 
-CleanSimulator.TestCase.settings = settings(max_examples=60, stateful_step_count=40, deadline=None,
+CleanSimulator.TestCase.settings = settings(max_examples=budget(60), stateful_step_count=40, deadline=None,
                                             suppress_health_check=list(HealthCheck))
 test_clean_simulator_never_gets_a_device_side_verdict = CleanSimulator.TestCase
 

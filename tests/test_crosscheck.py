@@ -9,17 +9,18 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import signal
-import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import IO
 
 import pytest
+from conftest import wait_until
 
-from xac1_proto import Client
+from xac1_proto import Client, XAC1Error
 from xac1_proto.sim.config import DEVIATIONS
 
 pytestmark = pytest.mark.slow
@@ -42,26 +43,20 @@ SUITE = ["--allow-motion", "--safe-range", "0:0x1000", "--scratch-points", "1,2,
          "--examples", "3", "--timeout", "0.3"]  # a silent device costs a timeout a probe
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _wait_port(port: int, proc: subprocess.Popen, deadline: float = 15.0) -> None:
-    end = time.monotonic() + deadline
-    while time.monotonic() < end:
-        if proc.poll() is not None:
-            raise RuntimeError(f"{proc.args} exited: {proc.stderr.read() if proc.stderr else ''}")
-        with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), timeout=0.2):
-            return
-        time.sleep(0.05)
-    raise TimeoutError(f"nothing listens on {port}")
+def _line(stream: IO[str], pattern: str, what: str) -> re.Match[str]:
+    """The first line of ``stream`` matching ``pattern`` (the process says it is ready, or has done
+    what it was asked); the lines before it are skipped. Bounded by the test's timeout."""
+    seen = []
+    for line in stream:
+        seen.append(line)
+        if m := re.search(pattern, line):
+            return m
+    raise AssertionError(f"{what}: the stream ended without {pattern!r}: {seen}")
 
 
 @contextlib.contextmanager
 def _running(args: list[str], **kwargs) -> Iterator[subprocess.Popen]:
-    proc = subprocess.Popen(args, stderr=subprocess.PIPE, **kwargs)
+    proc = subprocess.Popen(args, stderr=subprocess.PIPE, text=True, **kwargs)
     try:
         yield proc
     finally:
@@ -74,51 +69,60 @@ def _running(args: list[str], **kwargs) -> Iterator[subprocess.Popen]:
                 proc.wait()
 
 
-def _probe_port(port: int) -> None:
-    """Wait until the proxy accepts a client (it serves one at a time)."""
-    end = time.monotonic() + 10
-    while True:
+def _served_client(url: str) -> Client:
+    """A client the proxy serves. The proxy holds one host at a time and takes the next once it has seen
+    the previous one (the conformance run) go; a connection before that is closed at once, so this
+    connects until its ``0%C`` (which resets any alarm the suite left) is answered."""
+    def served() -> Client | None:
+        client = None
         try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.5):
-                return
-        except OSError:
-            if time.monotonic() > end:
-                raise
-            time.sleep(0.1)
+            client = Client(url, timeout=1.0)
+            if client.transact(b"0%C\r\n").frame is not None:
+                return client
+        except (OSError, XAC1Error):
+            pass
+        if client is not None:
+            client.close()
+        return None
+
+    return wait_until(served, 15.0, f"the proxy at {url} serving a new host", interval=0.05)
+
+
+def _control(sim: subprocess.Popen, command: str, done: str) -> None:
+    """Type ``command`` on the simulator's console and wait for its answer ``done`` (applied)."""
+    assert sim.stdin is not None and sim.stdout is not None
+    sim.stdin.write(f"{command}\n")
+    sim.stdin.flush()
+    _line(sim.stdout, re.escape(done), f"xac1 sim console: {command}")
 
 
 def _record(tmp_path: Path, deviation: str | None) -> list[dict]:
     """Run the suite and the emergency stop through a recording proxy; the decoded records."""
-    sim_port, proxy_port = _free_port(), _free_port()
     recording = tmp_path / "rec.jsonl"
-    sim_args = XAC1 + ["sim", "--tcp", f"127.0.0.1:{sim_port}", "--time-scale", "0"]
+    sim_args = XAC1 + ["sim", "--tcp", "127.0.0.1:0", "--time-scale", "0"]
     if deviation:
         sim_args += ["--deviation", deviation]
     env = dict(os.environ, NO_COLOR="1")
-    with _running(sim_args, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, env=env) as sim:
-        _wait_port(sim_port, sim)
-        proxy_args = XAC1 + ["proxy", "--device", f"socket://127.0.0.1:{sim_port}", "--tcp",
-                             f"127.0.0.1:{proxy_port}", "--record", str(recording), "--format", "jsonl"]
+    with _running(sim_args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env) as sim:
+        assert sim.stdout is not None and sim.stderr is not None
+        sim_url = _line(sim.stdout, r"^socket://\S+", "xac1 sim serving").group(0)  # its first line
+        proxy_args = XAC1 + ["proxy", "--device", sim_url, "--tcp", "127.0.0.1:0", "--record",
+                             str(recording), "--format", "jsonl"]
         with _running(proxy_args, stdout=subprocess.DEVNULL, env=env) as proxy:
-            _wait_port(proxy_port, proxy)
-            url = f"socket://127.0.0.1:{proxy_port}"
+            assert proxy.stderr is not None
+            port = _line(proxy.stderr, r"tcp 127\.0\.0\.1:(\d+)", "xac1 proxy forwarding").group(1)
+            url = f"socket://127.0.0.1:{port}"
             subprocess.run(XAC1 + ["conformance", "--port", url, *SUITE], capture_output=True, timeout=600,
                            env=env, check=False)
-            time.sleep(0.3)
-            assert sim.stdin is not None
-            with Client(url, timeout=1.0) as c:
+            with _served_client(url) as c:
+                c.transact(b"0RV\r\n")
+                _control(sim, "estop on", "emergency stop ON")
+                c.transact(b"0RV\r\n")
+                _control(sim, "estop off", "emergency stop off")
                 c.transact(b"0%C\r\n")
                 c.transact(b"0RV\r\n")
-                sim.stdin.write(b"estop on\n")
-                sim.stdin.flush()
-                time.sleep(0.3)
-                c.transact(b"0RV\r\n")
-                sim.stdin.write(b"estop off\n")
-                sim.stdin.flush()
-                time.sleep(0.3)
-                c.transact(b"0%C\r\n")
-                c.transact(b"0RV\r\n")
-            time.sleep(0.3)
+            # every answer above came through the proxy, which records all it forwarded before it ends
+            # on the SIGINT that leaving this block sends (docs/watching.md)
     decoded = subprocess.run(XAC1 + ["decode", str(recording), "--format", "jsonl"], capture_output=True,
                              text=True, timeout=120, env=env, check=False)
     assert decoded.stdout, decoded.stderr

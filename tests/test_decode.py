@@ -68,6 +68,7 @@ def test_live_jpnevulator_and_spy_agree_with_socat(tmp_path: Path) -> None:
         assert violations == LIVE_VIOLATIONS
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.requires_tool("sigrok-cli")
 def test_sigrok_cli_annotations_of_a_synthesized_waveform(tmp_path: Path) -> None:
     """sigrok-cli's UART decoder (two instances) on a synthesized 9600 8N1 waveform: the frames,
@@ -80,6 +81,7 @@ def test_sigrok_cli_annotations_of_a_synthesized_waveform(tmp_path: Path) -> Non
         assert violations == sorted(gallery.EXPECTED_VIOLATIONS)
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.requires_tool("tshark", "editcap")
 def test_pcapng_written_is_read_by_tshark_and_editcap_pcap_decodes(tmp_path: Path) -> None:
     """Our pcapng is an RTAC serial capture for tshark; editcap's pcap of it decodes to the session."""
@@ -202,7 +204,7 @@ def test_saleae_framing_error_is_a_line_error_on_its_frame(name: str) -> None:
 @pytest.mark.slow
 def test_untimed_capture_says_what_order_cannot_tell() -> None:
     """interceptty without -T has no time: the unanswered 0RV shows as overlapping-command on the next
-    0RV, with a detail saying it may as well be a no-answer (README "Decoding captures")."""
+    0RV, with a detail saying it may as well be a no-answer (docs/captures.md)."""
     result = xac1("decode", "captures/interceptty.log", "--format", "jsonl")
     lines = [json.loads(line) for line in result.stdout.splitlines()]
     overlap = [r for r in lines[:-1] if "overlapping-command" in r["violations"]]

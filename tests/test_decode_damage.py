@@ -1,7 +1,7 @@
 """Damaged captures: every gallery file (each format and layout) cut short and corrupted, decoded by
 ``xac1 decode`` as a user runs it. The rule (issue: offline decode): truncated and corrupted files give
 clear messages and partial results, never a traceback; exit status 1 when something was decoded, 2
-only when nothing could be (README "Decoding captures")."""
+only when nothing could be (docs/captures.md)."""
 
 from __future__ import annotations
 

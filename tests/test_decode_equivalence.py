@@ -34,6 +34,7 @@ from pathlib import Path
 from unittest import mock
 
 import pytest
+from conftest import budget
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from rich.markup import escape
@@ -345,7 +346,7 @@ def assert_library_equal(chunks: list[Chunk], close_at: float | None = None) -> 
     assert optimized[3] == expected[3]  # summary
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=budget(300), deadline=None)
 @given(events, gaps, cuts, st.booleans(), line_error_at)
 @example([(HOST, b"0RP3\r\n"), (DEVICE, b"0RP39302012345\r\n")], [0.0] * 40, [1], True, set())
 @example([(HOST, b"0RP30RP3\r\n"), (DEVICE, b"0RV1"), (DEVICE, b"00\r\n")], [1.0] * 40, [2, 3], True, {1})
@@ -354,7 +355,7 @@ def test_library_path_gives_the_references_records_and_summary(items, dts, sizes
     assert_library_equal(chunks_of(items, dts, sizes, timed, flagged))
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(events, gaps, st.booleans())
 def test_close_with_a_time_gives_the_references_records(items, dts, timed):
     chunks = chunks_of(items, dts, [64], timed)
@@ -412,7 +413,7 @@ def write_socat(chunks: list[Chunk], path: Path) -> None:
                     f"to={count[ch.dir] - 1}\n {ch.data.hex(' ')}\n")
 
 
-@settings(max_examples=120, deadline=None)
+@settings(max_examples=budget(120), deadline=None)
 @given(events, gaps, cuts, st.lists(st.tuples(st.integers(0, 10_000), st.integers(0, 255)), max_size=3),
        st.one_of(st.none(), st.integers(0, 10_000)))
 def test_pcapng_reader_gives_the_references_chunks_and_problems(tmp_path_factory, items, dts, sizes,
@@ -438,7 +439,7 @@ def test_pcapng_reader_gives_the_references_chunks_and_problems(tmp_path_factory
     assert_library_equal(optimized[0])
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(events, gaps, cuts)
 def test_socat_reader_gives_the_references_chunks(tmp_path_factory, items, dts, sizes):
     chunks = chunks_of(items, dts, sizes, timed=True)

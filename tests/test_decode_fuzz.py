@@ -22,6 +22,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from conftest import budget
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -154,8 +155,8 @@ def place(tmp: Path, name: str, data: bytes) -> Path:
     return path
 
 
-@settings(deadline=None, max_examples=300, suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                                  HealthCheck.too_slow])
+@settings(deadline=None, max_examples=budget(300),
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(damage=damaged(), reader=st.sampled_from(READERS), output=st.sampled_from(OUTPUTS))
 def test_damaged_gallery_captures_never_raise_or_hang(tmp_path: Path, damage: tuple[str, bytes],
                                                       reader: str, output: str) -> None:

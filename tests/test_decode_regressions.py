@@ -1,5 +1,5 @@
 """``xac1 decode`` on the inputs that broke it (issue 13, "Found: Decode"): each finding is a test named
-after it. The rule (README "Decoding captures"): every problem is reported as ``file:offset`` or
+after it. The rule (docs/captures.md): every problem is reported as ``file:offset`` or
 ``file:line`` with what was wrong, the damaged part is skipped, the rest is decoded; exit 1 with the
 count of problems, 0 only for a clean read, 2 when nothing could be decoded; never a traceback."""
 
@@ -73,6 +73,7 @@ def _epbs() -> list[tuple[int, int, int]]:
 
 # ---- pcapng ----
 
+@pytest.mark.slow  # starts a process
 def test_pcapng_packet_block_of_length_12_is_reported_and_the_rest_kept(tmp_path: Path) -> None:
     """An Enhanced Packet Block of total length 12 (legal, but no room for its 20 fixed bytes) was a
     ``struct.error`` traceback and lost the frames after it."""
@@ -86,6 +87,7 @@ def test_pcapng_packet_block_of_length_12_is_reported_and_the_rest_kept(tmp_path
     assert summary(result)["problems"] == 1
 
 
+@pytest.mark.slow  # starts a process
 def test_pcapng_interface_block_shorter_than_its_fixed_fields(tmp_path: Path) -> None:
     """An Interface Description Block whose body is shorter than its 8 fixed bytes: reported, its
     packets then fall on an unusable interface (reported), no traceback."""
@@ -97,6 +99,7 @@ def test_pcapng_interface_block_shorter_than_its_fixed_fields(tmp_path: Path) ->
     assert f"{bad}:{idb[0]} (block 2): interface description block body of 4 byte(s)" in result.stderr
 
 
+@pytest.mark.slow  # starts a process
 def test_pcapng_later_section_header_with_implausible_length_does_not_end_the_file(tmp_path: Path) -> None:
     """A second Section Header Block whose length is 2^32-4 silently ended the file (exit 0, packets
     after it gone). Now: reported with its offset, skipped, every packet after it decoded."""
@@ -112,6 +115,7 @@ def test_pcapng_later_section_header_with_implausible_length_does_not_end_the_fi
     assert summary(result)["frames"] == SESSION_FRAMES
 
 
+@pytest.mark.slow  # starts a process
 def test_pcapng_captured_length_larger_than_its_block(tmp_path: Path) -> None:
     """The captured length of a packet larger than the bytes in its block was not reported (the
     padding was decoded as line data)."""
@@ -126,6 +130,7 @@ def test_pcapng_captured_length_larger_than_its_block(tmp_path: Path) -> None:
     assert summary(result)["frames"]["host"] + summary(result)["frames"]["device"] == 16
 
 
+@pytest.mark.slow  # starts a process
 def test_pcap_record_longer_than_the_file_is_a_corrupt_length(tmp_path: Path) -> None:
     """A pcap record whose length runs past the end of the file was reported as "file ends"; it is a
     corrupt length, and the records after it are found again."""
@@ -142,6 +147,7 @@ def test_pcap_record_longer_than_the_file_is_a_corrupt_length(tmp_path: Path) ->
 
 # ---- times ----
 
+@pytest.mark.slow  # starts a process
 def test_socat_timestamp_with_hour_27_is_a_problem_not_a_traceback(tmp_path: Path) -> None:
     """One bad digit in a socat header (hour 27) was a ``ValueError`` traceback from ``wallclock``."""
     lines = (CAPTURES / "socat-x.log").read_text().splitlines(keepends=True)
@@ -154,6 +160,7 @@ def test_socat_timestamp_with_hour_27_is_a_problem_not_a_traceback(tmp_path: Pat
     assert summary(result)["frames"] == SESSION_FRAMES
 
 
+@pytest.mark.slow  # starts a process
 def test_jpnevulator_day_32_is_a_problem_not_a_traceback(tmp_path: Path) -> None:
     lines = (CAPTURES / "jpnevulator.txt").read_text().splitlines(keepends=True)
     lines[0] = re.sub(r"^(\d{4}-\d\d)-\d\d", r"\1-32", lines[0])
@@ -164,6 +171,7 @@ def test_jpnevulator_day_32_is_a_problem_not_a_traceback(tmp_path: Path) -> None
     assert summary(result)["frames"] == SESSION_FRAMES
 
 
+@pytest.mark.slow  # starts a process
 def test_saleae_carriage_return_inside_a_row(tmp_path: Path) -> None:
     """A CR inside a Saleae row was a ``_csv.Error`` traceback."""
     host = (CAPTURES / "saleae-host.csv").read_text().splitlines(keepends=True)
@@ -175,6 +183,7 @@ def test_saleae_carriage_return_inside_a_row(tmp_path: Path) -> None:
     assert result.returncode == 1 and f"{bad}:4: not a Saleae row" in result.stderr
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.parametrize("view", ["text", "jsonl", "summary"])
 def test_nan_infinite_and_absurd_times_never_crash_a_view(tmp_path: Path, view: str) -> None:
     """A recording with ``"t": NaN`` or ``Infinity`` and a Saleae time of 1e14 crashed the latency
@@ -223,6 +232,7 @@ def test_pipe_fifo_and_dash_decode_a_valid_capture(tmp_path: Path, name: str) ->
 
 # ---- misleading results ----
 
+@pytest.mark.slow  # starts a process
 def test_one_half_of_a_two_file_capture_says_the_other_direction_is_missing(tmp_path: Path) -> None:
     """``saleae-host.csv`` alone decoded silently as a dead controller plus a host sending back to back
     (a storm of no-answer/overlapping-command). Now a note says the device direction is missing and
@@ -237,6 +247,7 @@ def test_one_half_of_a_two_file_capture_says_the_other_direction_is_missing(tmp_
     assert any("other direction is missing" in note for note in last["notes"])
 
 
+@pytest.mark.slow  # starts a process
 def test_wrong_input_format_stops_early_and_names_the_detected_one() -> None:
     """A pcap read as socat printed one error per line, in raw binary. Now: a few located problems
     with no raw bytes, the detected format named, exit 2."""
@@ -253,17 +264,20 @@ def test_wrong_input_format_stops_early_and_names_the_detected_one() -> None:
     ("--timeout", "soon", "not a number"), ("--header", "0XX", "not a header of the protocol"),
     ("--samplerate", "nan", "above 0"), ("--samplerate", "-48000", "above 0"),
     ("--storm-limit", "0", "from 1")])
+@pytest.mark.slow  # starts a process
 def test_bad_option_values_are_rejected(option: str, value: str, words: str) -> None:
     """``--timeout -1`` and ``--header 0XX`` were accepted; non-finite numbers too."""
     result = xac1(str(CAPTURES / "socat-x.log"), f"{option}={value}")
     assert result.returncode == 2 and words in result.stderr and option in result.stderr
 
 
+@pytest.mark.slow  # starts a process
 def test_lower_case_header_option_is_read_as_the_header() -> None:
     result = xac1(str(CAPTURES / "socat-x.log"), "--header", "0wp", "--format", "jsonl")
     assert {json.loads(line).get("header") for line in result.stdout.splitlines()[:-1]} == {"0WP"}
 
 
+@pytest.mark.slow  # starts a process
 def test_two_files_of_different_formats_say_which_format_each_is() -> None:
     """Two recognised files of different formats got "none matched"."""
     result = xac1(str(CAPTURES / "socat-x.log"), str(CAPTURES / "spy.log"))
@@ -272,6 +286,7 @@ def test_two_files_of_different_formats_say_which_format_each_is() -> None:
     assert "none matched" not in result.stderr
 
 
+@pytest.mark.slow  # starts a process
 def test_problems_reach_the_json_lines_summary(tmp_path: Path) -> None:
     """Damage reported on stderr was absent from the summary record: a pipeline saw only the exit
     status. Now the summary carries the count and the first messages; a clean read has neither."""
@@ -288,6 +303,7 @@ def test_problems_reach_the_json_lines_summary(tmp_path: Path) -> None:
     assert "problems" not in clean
 
 
+@pytest.mark.slow  # starts a process
 def test_interceptty_less_than_sign_is_the_host() -> None:
     """interceptty prints ``<`` for what the program on its front pty (the host software) wrote and
     ``>`` (and a tab) for what the device answered; the reader had them the other way round."""

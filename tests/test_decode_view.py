@@ -20,6 +20,7 @@ from xac1_proto.cli import main
 ROOT = Path(__file__).resolve().parent.parent
 
 
+@pytest.mark.slow  # starts a process
 def test_bytes_that_look_like_markup_or_emoji_codes_are_shown_as_typed(tmp_path: Path) -> None:
     """``:smile:`` in a frame was shown as an emoji and ``[bold]`` vanished into styling: the decoder
     must show the bytes on the line, whatever they look like."""

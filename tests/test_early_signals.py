@@ -47,6 +47,7 @@ def test_a_signal_while_loading_ends_quietly_with_exit_2(module: str, sig: int) 
     assert (done.returncode, done.stderr, done.stdout) == (2, f"xac1: stopped by {signal_name(sig)}\n", "")
 
 
+@pytest.mark.slow  # starts a process
 def test_the_entry_point_is_the_early_policy() -> None:
     """The console script ``xac1`` and ``python -m xac1_proto`` both start at ``xac1_proto.entry:main``,
     whose module imports nothing but ``os``, ``signal`` and ``types`` before the handlers are set."""

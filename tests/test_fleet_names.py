@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import xac1
+from conftest import budget, xac1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -16,7 +16,7 @@ from conformance.fleet import MAX_STEM, FleetError, Target, check_names, file_na
 LONG = "xac1sim://?time_scale=0&seed=" + "0" * 280  # + a last digit: 310 characters, a valid seed
 
 
-@settings(max_examples=80)
+@settings(max_examples=budget(80))
 @given(st.lists(st.text(min_size=1, max_size=400), min_size=1, max_size=6, unique=True))
 def test_port_file_names_are_short_safe_and_distinct(urls: list[str]) -> None:
     """Whatever the URLs (300 characters, odd characters), each device's file stem is at most

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -87,7 +88,7 @@ segments = st.one_of(
 )
 
 
-@settings(max_examples=300)
+@settings(max_examples=budget(300))
 @given(st.lists(segments, max_size=8), st.lists(st.integers(0, 400), max_size=12))
 def test_chunking_never_changes_events_and_every_byte_is_accounted(parts, cuts):
     stream = b"".join(raw for _, raw in parts)
@@ -102,7 +103,7 @@ def test_chunking_never_changes_events_and_every_byte_is_accounted(parts, cuts):
         at += len(e.raw)
 
 
-@settings(max_examples=300)
+@settings(max_examples=budget(300))
 @given(st.lists(segments, max_size=8))
 def test_no_valid_frame_is_lost_among_garbage(parts):
     """A valid frame that follows any garbage is still found whole (resync on the next header)."""

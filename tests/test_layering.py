@@ -22,7 +22,7 @@ from xac1_proto.cli import COMMANDS
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "xac1_proto"
 
-# The sans-IO core (docs: README "Architecture"); the rulebook engine joins it once it exists.
+# The sans-IO core (docs/architecture.md "Layers"); the rulebook engine joins it once it exists.
 CORE = ["spec", "grammar", "frames", "codec", "framer", "motion", "chunk", "errors", "exchange", "replay"]
 if (PACKAGE / "conversation.py").exists():
     CORE.append("conversation")
@@ -51,6 +51,7 @@ def forbidden(modules: list[str]) -> list[str]:
             or any(m == f or m.startswith(f + ".") for f in FORBIDDEN_OWN)]
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.parametrize("name", CORE)
 def test_core_module_loads_no_io_thread_or_shell(name):
     """Importing a core module alone loads no serial, socket, threading, select and no sniffer,
@@ -60,12 +61,14 @@ def test_core_module_loads_no_io_thread_or_shell(name):
     assert forbidden(modules) == []
 
 
+@pytest.mark.slow  # starts a process
 def test_whole_core_together_loads_nothing_forbidden():
     """All the core modules imported in one interpreter: still nothing forbidden."""
     modules = loaded_after("\n".join(f"import xac1_proto.{n}" for n in CORE))
     assert forbidden(modules) == []
 
 
+@pytest.mark.slow  # starts a process
 def test_forbidden_check_catches_a_shell():
     """The check above is not vacuous: importing the client does load pyserial and threads."""
     found = forbidden(loaded_after("import xac1_proto.client"))
@@ -98,6 +101,7 @@ def test_package_never_imports_a_shell_above_it():
     assert offenders == []
 
 
+@pytest.mark.slow  # starts a process
 def test_package_import_is_lazy():
     """``import xac1_proto`` loads no submodule and registers no URL handler; a public name loads its
     module on first use."""
@@ -124,6 +128,7 @@ def test_public_names_resolve():
         _ = xac1_proto.no_such_name
 
 
+@pytest.mark.slow  # starts a process
 def test_client_registers_the_url_handler():
     """Importing ``xac1_proto.client`` makes ``serial.serial_for_url('xac1sim://')`` work."""
     got = fresh("import json, serial\n"
@@ -135,22 +140,28 @@ def test_client_registers_the_url_handler():
     assert got == [False, "0RV100\r\n"]
 
 
-def readme_snippet() -> str:
-    """The README's "open xac1sim:// from a pyserial script" snippet (the block after its marker)."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+SNIPPET_PAGE = ROOT / "docs" / "python-api.md"
+
+
+def guide_snippet() -> str:
+    """The Python API guide's "open xac1sim:// from a pyserial script" snippet (the block after its
+    marker)."""
+    text = SNIPPET_PAGE.read_text(encoding="utf-8")
     m = re.search(r"<!-- snippet: xac1sim-url -->\n```python\n(.*?)```", text, re.DOTALL)
-    assert m, "README.md lost its xac1sim:// snippet (marker <!-- snippet: xac1sim-url -->)"
+    assert m, "docs/python-api.md lost its xac1sim:// snippet (marker <!-- snippet: xac1sim-url -->)"
     return m.group(1)
 
 
-def test_readme_snippet_opens_xac1sim_with_pyserial_alone():
-    """The README's snippet, run as a plain pyserial script, talks to the simulator."""
-    snippet = readme_snippet()
+@pytest.mark.slow  # starts a process
+def test_guide_snippet_opens_xac1sim_with_pyserial_alone():
+    """The guide's snippet, run as a plain pyserial script, talks to the simulator."""
+    snippet = guide_snippet()
     assert "import xac1_proto" not in snippet.replace("xac1_proto.urlhandler", "")
     got = fresh(snippet + "\nimport json\nprint(json.dumps(answer.decode()))")
     assert got == "0RV100\r\n"
 
 
+@pytest.mark.slow  # starts a process
 def test_parse_imports_only_its_own_subcommand():
     """``xac1 parse`` imports its module and none of the other seven (nor serial, sniffer, conformance)."""
     modules = loaded_after("import contextlib, io\nfrom xac1_proto.cli import main\n"
@@ -162,6 +173,7 @@ def test_parse_imports_only_its_own_subcommand():
     assert forbidden(modules) == ["xac1_proto.cli", "xac1_proto.cli.parse_cmd"]
 
 
+@pytest.mark.slow  # starts a process
 def test_help_imports_no_subcommand():
     """``xac1 --help`` is built from the table alone."""
     modules = loaded_after("import contextlib, io\nfrom xac1_proto.cli import main\n"

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import CAPTURES, ROOT
+from conftest import CAPTURES, ROOT, budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,7 +30,7 @@ def read(module, path: Path) -> tuple[list, Report]:
 
 # ---- 1. a time no float holds ----
 
-@settings(max_examples=60)
+@settings(max_examples=budget(60))
 @given(st.one_of(st.integers(), st.integers(-10**500, 10**500).filter(lambda n: abs(n) > 10**308),
                  st.floats(allow_nan=True, allow_infinity=True)))
 def test_any_number_is_a_time_or_says_why_not(t: int | float) -> None:
@@ -101,7 +101,7 @@ def main_args(tmp_path: Path):
 
 # ---- 2. a line with no end ----
 
-@settings(max_examples=40)
+@settings(max_examples=budget(40))
 @given(st.binary(max_size=3 * MAX_LINE // 2), st.sampled_from([1, 7, MAX_LINE - 1, MAX_LINE, MAX_LINE + 3]))
 def test_numbered_lines_come_in_bounded_pieces_that_add_up(data: bytes, long: int) -> None:
     """The reopened file's lines (sigrok's prescan and extra passes) come in pieces of at most
@@ -144,7 +144,7 @@ TABLE = ['name,type,start_time,duration,data', '"uart A","data",0.1,0.001,0x30',
          '"uart A","data",0.101,0.001,0x0A', '"uart B","data",0.2,0.001,0x31']
 
 
-@settings(max_examples=30)
+@settings(max_examples=budget(30))
 @given(st.sampled_from([ROWS, TABLE]), st.sampled_from(["\n", "\r\n", "\r"]), st.booleans(),
        st.integers(0, 3))
 def test_saleae_reads_lf_crlf_and_cr_alone_the_same(tmp_path_factory, rows: list[str], end: str,

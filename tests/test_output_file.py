@@ -9,7 +9,7 @@ import stat
 from pathlib import Path
 
 import pytest
-from conftest import CAPTURES, xac1
+from conftest import CAPTURES, budget, xac1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -35,7 +35,7 @@ def odd(tmp_path: Path, kind: str) -> Path:
     return p
 
 
-@settings(max_examples=25)
+@settings(max_examples=budget(25))
 @given(st.binary(max_size=2000), st.booleans())
 def test_writing_through_a_link_replaces_the_target_and_keeps_the_link(tmp_path_factory, data: bytes,
                                                                        existed: bool) -> None:

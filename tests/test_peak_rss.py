@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import pytest
 from peak_rss import run_measuring_peak_rss
 
 SMALL = [sys.executable, "-c", "pass"]
@@ -17,6 +18,7 @@ def _touched(mib: int) -> bytearray:
     return block
 
 
+@pytest.mark.slow  # starts a process
 def test_a_large_caller_does_not_inflate_the_childs_peak() -> None:
     """The CI failure this measure exists for: a bare ``os.wait4`` on a child of a 150 MB pytest worker
     reads about 150 MB for a 10 MB program (the child's pre-exec copy of the worker is counted). Here
@@ -30,6 +32,7 @@ def test_a_large_caller_does_not_inflate_the_childs_peak() -> None:
     del held
 
 
+@pytest.mark.slow  # starts a process
 def test_the_childs_own_growth_is_counted_and_its_exit_status_kept() -> None:
     grows = "b = bytearray(100 << 20); b[::4096] = b'1' * len(b[::4096]); raise SystemExit(3)"
     code, peak = run_measuring_peak_rss([sys.executable, "-c", grows])

@@ -9,6 +9,7 @@ import threading
 import time
 
 import pytest
+from conftest import budget
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -62,7 +63,7 @@ def test_proxy_forwards_byte_for_byte_and_decodes():
         try:
             with socket.create_connection(proxy.host.address, timeout=0.2) as sock:
 
-                @settings(max_examples=15, deadline=None,
+                @settings(max_examples=budget(15), deadline=None,
                           suppress_health_check=[HealthCheck.function_scoped_fixture])
                 @given(st.lists(st.sampled_from(COMMANDS), min_size=1, max_size=4),
                        st.lists(st.integers(1, 6), max_size=8))

@@ -7,6 +7,7 @@ import struct
 from pathlib import Path
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -225,7 +226,7 @@ def test_pcap_other_linktype_is_refused(tmp_path: Path) -> None:
         read(pcap, f)
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=budget(25), deadline=None)
 @given(st.lists(st.tuples(st.sampled_from(["host", "device"]), st.binary(min_size=1, max_size=40),
                           st.floats(min_value=0, max_value=1e3)), max_size=8))
 def test_pcapng_writer_round_trip(tmp_path_factory, items) -> None:

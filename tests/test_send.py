@@ -103,7 +103,7 @@ def test_send_bad_escapes_get_our_message():
 
 
 def test_send_without_a_command_exits_5_as_documented():
-    """No command given is bad input: exit 5, as the README says (not argparse's 2, which would read
+    """No command given is bad input: exit 5, as docs/commands.md says (not argparse's 2, which would read
     as "protocol error")."""
     r = send(SIM)
     assert r.returncode == 5

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from peak_rss import run_measuring_peak_rss
@@ -51,7 +52,7 @@ def run(*args: str, cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess[str]:
 
 # ---- the aggregator ----
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=budget(40), deadline=None)
 @given(st.lists(st.tuples(st.sampled_from([H, D]),
                           st.one_of(st.binary(max_size=20), frames().map(lambda f: f.to_bytes())),
                           st.floats(0, 2.0)), max_size=40),
@@ -134,6 +135,7 @@ def test_alarm_history_reaction_and_latch_from_the_gallery_session():
 
 # ---- the command line ----
 
+@pytest.mark.slow  # starts a process
 def test_decode_report_matches_the_jsonl_records(tmp_path):
     """``xac1 decode FILE --report`` writes one self-contained page whose embedded data has one record per
     record of ``--format jsonl``, the same violations and the same summary tables."""
@@ -161,6 +163,7 @@ def _umask() -> int:
     return mask
 
 
+@pytest.mark.slow  # starts a process
 def test_empty_capture_gives_a_report_that_says_so(tmp_path):
     """A capture with nothing in it (a zero-byte file, a recording with no chunk) still gets its report,
     which says so; the exit status stays 2 (nothing decoded)."""
@@ -177,6 +180,7 @@ def test_empty_capture_gives_a_report_that_says_so(tmp_path):
         assert "<script>" in page and "Plotly.newPlot" in page  # the page script, with nothing to plot
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.parametrize("where", ["missing-folder/s.html", "a-folder", "locked/s.html"])
 def test_unwritable_report_path_is_refused_before_any_work(tmp_path, where):
     """``--report`` to a path that cannot be written: a clear error naming it, exit 2, and no output at
@@ -194,6 +198,7 @@ def test_unwritable_report_path_is_refused_before_any_work(tmp_path, where):
     assert not target.is_file()
 
 
+@pytest.mark.slow  # starts a process
 def test_unwritable_report_path_stops_sniff_before_opening_taps(tmp_path):
     """``xac1 sniff --report`` to a folder that does not exist: exit 2 before any tap is opened (the taps
     named here do not exist either: the report's error comes first)."""
@@ -207,6 +212,7 @@ _NO_PLOTLY = ("import sys; sys.modules['plotly'] = None; from xac1_proto.cli imp
               "sys.argv = ['xac1'] + sys.argv[1:]; sys.exit(main())")
 
 
+@pytest.mark.slow  # starts a process
 def test_without_plotly_decode_works_and_report_names_the_extra(tmp_path):
     """Without the ``report`` extra (plotly unimportable): ``xac1 decode`` works as before; ``--report``
     says which extra to install, exit 2, nothing decoded."""
@@ -228,7 +234,7 @@ def test_report_object_refuses_a_directory(tmp_path):
 
 # ---- a large capture ----
 
-MAX_REPORT_BYTES = 9_000_000  # README "Session report": a report stays under 9 MB whatever the capture
+MAX_REPORT_BYTES = 9_000_000  # docs/output.md: a report stays under 9 MB whatever the capture
 MAX_RSS_MB = 200
 
 
@@ -288,6 +294,7 @@ def test_timeout_records_are_marked_on_the_device_side():
     assert agg.exchange_count == 1
 
 
+@pytest.mark.slow  # starts a process
 def test_proxy_report_written_on_sigterm(tmp_path):
     """``xac1 proxy --report``: the report is written when the run ends (here on SIGTERM) and holds the
     exchanges and violations the proxy printed (docs/protocol.md "Violation codes")."""

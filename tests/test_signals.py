@@ -136,6 +136,7 @@ print(json.dumps(results))
 """
 
 
+@pytest.mark.slow  # starts a process
 def test_a_signal_landing_anywhere_inside_stop_wait_wakes_it() -> None:
     """``xac1 sim`` waits on ``end.stop`` in its main thread; the signal handler sets it in that same
     thread, wherever the signal lands. A lock-taking event deadlocks when it lands while ``wait()``

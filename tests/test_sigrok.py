@@ -11,6 +11,7 @@ import types
 from pathlib import Path
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -109,7 +110,7 @@ def _original(raw: bytes, role: str) -> tuple[str | None, dict | None, list[tupl
     return header, fields, [(v.code, v.offset) for v in found]
 
 
-@settings(max_examples=250, deadline=None)
+@settings(max_examples=budget(250), deadline=None)
 @given(frame_bytes, st.sampled_from(spec.ROLES))
 def test_decoder_checks_equal_codec_diagnose(raw, role):
     """For any bytes read as a command or an answer, the decoder finds the same fields and the same
@@ -129,7 +130,7 @@ PIECES = sorted({fs.header.encode()[:n] for fs in spec.FRAME_SPECS for n in (1, 
 segments = st.one_of(frame_bytes, st.binary(min_size=1, max_size=70), st.sampled_from(PIECES))
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=budget(150), deadline=None)
 @given(st.lists(segments, max_size=12), st.booleans())
 def test_decoder_framer_equals_framer(parts, flush):
     """Fed a byte at a time (as sigrok gives them), the decoder's framer cuts a stream into the same

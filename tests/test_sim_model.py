@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -165,7 +166,7 @@ def test_silent_point_position_alarms() -> None:
                           st.binary(max_size=20).map(lambda b: b.replace(b"\n", b"") + b"\n")),
                 max_size=25),
        st.data())
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=budget(150), deadline=None)
 def test_fuzz_one_answer_per_line(lines: list[bytes], data: st.DataObject) -> None:
     """Silent item 1: every LF-terminated line gets exactly one answer, a malformed one the alarm answer
     (01 unless another alarm is latched), whatever the chunking; the model never raises."""
@@ -190,7 +191,7 @@ def test_fuzz_one_answer_per_line(lines: list[bytes], data: st.DataObject) -> No
 
 
 @given(st.binary(max_size=300))
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=budget(200), deadline=None)
 def test_fuzz_arbitrary_bytes(stream: bytes) -> None:
     """Arbitrary byte streams never crash the model; answers are whole frames, one per LF."""
     m = DeviceModel(INSTANT)

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 
 import pytest
 import serial
+from conftest import budget
 from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
@@ -196,7 +197,7 @@ class TcpRules(DeviceRules):
     KIND = "tcp"
 
 
-_MACHINE = settings(max_examples=12, stateful_step_count=25, deadline=None)
+_MACHINE = settings(max_examples=budget(12), stateful_step_count=25, deadline=None)
 TestPtyRules = _MACHINE(PtyRules).TestCase
 TestTcpRules = pytest.mark.slow(_MACHINE(TcpRules).TestCase)  # seconds: every step over TCP
 TestPtyRules.__doc__ = "Rule machine over the pty: " + (DeviceRules.__doc__ or "")
@@ -265,6 +266,7 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+@pytest.mark.slow  # starts a process
 @pytest.mark.requires_tool("socat")
 def test_socat_bridges_pty_to_tcp() -> None:
     """socat (a real third-party tool) bridges the simulator's pty to a TCP port; a socket:// client

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -207,7 +208,7 @@ def _split(data: bytes, cuts: list[int]) -> list[bytes]:
     return [data[a:b] for a, b in zip(points, points[1:], strict=False) if b > a]
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=budget(40), deadline=None)
 @given(cuts=st.lists(st.lists(st.integers(0, 40), max_size=6), min_size=len(CONVERSATION),
                      max_size=len(CONVERSATION)), timed=st.booleans())
 def test_chunking_never_changes_records(cuts, timed):
@@ -219,7 +220,7 @@ def test_chunking_never_changes_records(cuts, timed):
     assert [r.to_json() for r in analyze(whole)] == [r.to_json() for r in analyze(split)]
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(st.lists(st.tuples(st.sampled_from([H, D]),
                           st.one_of(st.binary(max_size=30), frames().map(lambda f: f.to_bytes())),
                           st.floats(0, 0.5)), max_size=25))

@@ -7,6 +7,7 @@ import os
 import select
 import termios
 
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -22,7 +23,7 @@ def kernel_marks(line: list[tuple[int, bool]]) -> bytes:
     return bytes(out)
 
 
-@settings(max_examples=150)
+@settings(max_examples=budget(150))
 @given(st.lists(st.tuples(st.sampled_from([0x00, 0x0A, 0x30, 0xFF, 0x7F]) | st.integers(0, 255),
                           st.booleans()), max_size=40),
        st.lists(st.integers(1, 7), max_size=20))

@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from wireshark_tshark import (
@@ -115,7 +116,7 @@ chunk_st = st.builds(Chunk, st.floats(min_value=1.0e9, max_value=2.0e9, allow_na
                      st.sampled_from([None, None, None, "UART framing error", "UART parity error"]))
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(st.lists(chunk_st, max_size=25))
 def test_pcapng_round_trip(tmp_path_factory, chunks):
     """Every chunk comes back from our pcap reader as written: direction (TX host, RX device), bytes,
@@ -217,7 +218,7 @@ def test_dissector_equals_decoder_frame_by_frame(tmp_path):
     assert done.stdout.split() == ["0x03"]
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=budget(15), deadline=None)
 @given(cuts=st.lists(st.integers(min_value=1, max_value=15), min_size=1, max_size=40),
        noise=st.lists(st.binary(min_size=1, max_size=6), max_size=3),
        flagged=st.sets(st.integers(min_value=0, max_value=60), max_size=6))

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import wait_until
 from wireshark_tshark import PLUGIN, assert_frames_match, dissect, dissected_verdicts, tshark, verdicts_of
 
 from xac1_proto.sim import SimConfig, serve_pty, serve_tcp
@@ -49,14 +50,25 @@ def wait_line(stream, pattern: str, seen: list[str]) -> re.Match[str]:
 
 
 def connect(port: int) -> socket.socket:
-    deadline = time.monotonic() + WAIT_S
-    while True:
+    """A connection to ``port`` once something listens there."""
+    def connected() -> socket.socket | None:
         try:
             return socket.create_connection(("127.0.0.1", port), timeout=WAIT_S)
         except OSError:
-            if time.monotonic() > deadline:
-                raise
-            time.sleep(0.05)
+            return None
+
+    return wait_until(connected, WAIT_S, f"a listener on 127.0.0.1:{port}", interval=0.05)
+
+
+def records_until(stream, last: bytes, seen: list[dict]) -> list[dict]:
+    """JSON lines records read from a live ``--format jsonl`` view until the device frame ``last`` (the
+    answer the host just got): from then on the proxy has recorded and shown every byte before it."""
+    while True:
+        line = stream.readline()
+        assert line, f"the view ended before {last!r}: {seen}"
+        seen.append(json.loads(line))
+        if seen[-1].get("dir") == "device" and bytes.fromhex(seen[-1].get("raw", "")) == last:
+            return seen
 
 
 def talk(sock: socket.socket, commands: tuple[bytes, ...] = SLOPPY_HOST) -> list[bytes]:
@@ -113,13 +125,15 @@ def test_proxy_recording_of_a_sloppy_host_opens_in_wireshark(tmp_path, profile_e
             with connect(port) as sock:
                 answers = talk(sock)
             assert answers[1] == b"0%%01\r\n" and answers[3] == b"0%C00\r\n"
-            time.sleep(0.3)
+            live = records_until(proxy.stdout, answers[-1], [])
             proxy.send_signal(signal.SIGINT)
-            out, err = proxy.communicate(timeout=WAIT_S)
+            out = proxy.stdout.read()  # the rest (not communicate: it would skip the text buffer)
+            err = proxy.stderr.read()
+            proxy.wait(WAIT_S)
         finally:
             proxy.kill()
     assert proxy.returncode == 0 and "Traceback" not in err, err
-    live = [json.loads(line) for line in out.splitlines()]
+    live += [json.loads(line) for line in out.splitlines()]
     assert live[-1]["type"] == "summary"
     rows = dissect(rec, plugin=False, decode_as=False, env=profile_env)  # the installed profile only
     assert dissected_verdicts(rows) == verdicts_of(live[:-1])
@@ -141,8 +155,9 @@ def test_sim_log_pcapng_carries_the_verdicts(tmp_path):
         url = sim.stdout.readline().strip()
         port = int(url.rsplit(":", 1)[1])
         with connect(port) as sock:
-            talk(sock)
-        time.sleep(0.2)
+            answers = talk(sock)
+        # the simulator logs an answer just after sending it: wait until the last one is in the file
+        wait_until(lambda: answers[-1] in rec.read_bytes(), WAIT_S, f"{answers[-1]!r} in {rec}")
         sim.send_signal(signal.SIGTERM)
         _, err = sim.communicate(timeout=WAIT_S)
     finally:
@@ -163,12 +178,15 @@ def test_kill_9_proxy_recording_opens_up_to_its_last_packet(tmp_path):
     """A proxy killed with kill -9 leaves a pcapng tshark opens with every packet written."""
     rec = tmp_path / "k.pcapng"
     with serve_pty(SimConfig(time_scale=0)) as sim:
-        proxy = xac1("proxy", "--device", sim.path, "--tcp", "127.0.0.1:0", "--record", str(rec))
+        proxy = xac1("proxy", "--device", sim.path, "--tcp", "127.0.0.1:0", "--record", str(rec), "--format",
+                     "jsonl")
         try:
             port = int(wait_line(proxy.stderr, r"tcp 127\.0\.0\.1:(\d+)", []).group(1))
             with connect(port) as sock:
-                talk(sock, (b"0RV\r\n",) * 5)
-                time.sleep(0.3)
+                answers = talk(sock, (b"0RV\r\n",) * 5)
+                shown: list[dict] = []
+                while len([r for r in shown if r["type"] == "frame"]) < 10:  # a frame is shown once
+                    records_until(proxy.stdout, answers[-1], shown)          # it is recorded
                 proxy.send_signal(signal.SIGKILL)
                 proxy.wait(WAIT_S)
         finally:
@@ -214,7 +232,8 @@ def test_extcap_driven_as_wireshark_drives_it(tmp_path, profile_env):
                 talk(sock)
                 seen: list[str] = []
                 wait_line(reader.stdout, r"\t0RS\talarm-ignored", seen)  # while the capture runs
-            time.sleep(0.2)
+            while sum(line.split("\t")[1:2] == ["0RP"] for line in seen) < 2:  # the last answer, shown
+                wait_line(reader.stdout, r"\t0RP\t", seen)
             capture.send_signal(signal.SIGTERM)
             _, err = capture.communicate(timeout=WAIT_S)
             out = reader.stdout.read()  # the rest, after the lines wait_line took (not communicate:
@@ -246,17 +265,21 @@ def test_extcap_tap_interface_captures_a_y_cable(tmp_path):
                        "--host-tap", cable.tap_paths["host"], "--device-tap", cable.tap_paths["device"])
         try:
             taps = {os.path.realpath(p) for p in cable.tap_paths.values()}
-            deadline = time.monotonic() + WAIT_S
-            while not taps <= open_files(capture.pid):  # the taps are open: the capture runs
-                assert time.monotonic() < deadline and capture.poll() is None, capture.stderr
-                time.sleep(0.05)
+
+            def taps_open() -> bool:  # the taps are open: the capture runs
+                assert capture.poll() is None, capture.stderr
+                return taps <= open_files(capture.pid)
+
+            wait_until(taps_open, WAIT_S, "the extcap capture holding both taps", interval=0.05)
             with Client(cable.host_path) as client:
                 client.read_version()
                 client.read_outputs()
-            time.sleep(0.3)
+            seen: list[str] = []
+            wait_line(reader.stdout, r"^0RS\tanswer", seen)  # the taps' last frame reached Wireshark
             capture.send_signal(signal.SIGTERM)
             _, err = capture.communicate(timeout=WAIT_S)
-            out, _ = reader.communicate(timeout=WAIT_S)
+            out = "".join(seen) + reader.stdout.read()  # not communicate: it would skip the text buffer
+            reader.wait(WAIT_S)
         finally:
             capture.kill()
             reader.kill()

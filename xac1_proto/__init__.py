@@ -4,7 +4,7 @@ How this works: importing the package loads nothing but this file. Every public 
 from its module on first use (PEP 562 ``__getattr__``), so ``import xac1_proto.framer`` (or spec,
 grammar, frames, codec, motion, chunk: the sans-IO core) loads no serial port, socket, thread or clock,
 and ``xac1_proto.Client`` still works. The ``xac1sim://`` URL handler registers itself when
-``xac1_proto.client`` or ``xac1_proto.urlhandler`` is imported (see the README).
+``xac1_proto.client`` or ``xac1_proto.urlhandler`` is imported (docs/python-api.md).
 """
 
 from __future__ import annotations
