@@ -187,8 +187,6 @@ def test_data_tables_cite_real_sections():
 
 # ---- the README and the guides ----
 
-# Guides written on other branches of this round: the README links them before they land.
-PENDING_GUIDES = {"docs/replay.md", "docs/sigrok.md"}
 _LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 
 
@@ -212,19 +210,18 @@ def test_readme_links_a_guide_for_every_task():
         assert _LINK.search(section), f"README task without a link: {section.splitlines()[0]}"
     guide_names = {p.relative_to(ROOT).as_posix() for p in guides()}
     assert guide_names - linked == set()
-    assert linked >= PENDING_GUIDES
 
 
 def test_every_relative_link_in_the_docs_resolves():
     """Every relative link of README.md, CONTRIBUTING.md, CHANGELOG.md and the guides names a file that
-    exists (only the two guides of other branches may still be missing)."""
+    exists."""
     bad = []
     for page in [README, ROOT / "CONTRIBUTING.md", ROOT / "CHANGELOG.md", *guides()]:
         for target in _LINK.findall(page.read_text(encoding="utf-8")):
             if "://" in target or target.startswith("mailto:"):
                 continue
             path = (page.parent / target).resolve()
-            if not path.exists() and path.relative_to(ROOT).as_posix() not in PENDING_GUIDES:
+            if not path.exists():
                 bad.append(f"{page.relative_to(ROOT)}: {target}")
     assert not bad, "links to nothing:\n" + "\n".join(bad)
 
