@@ -52,7 +52,8 @@ refused with an alarm takes no effect (silent item 18); a garbled, missing or fa
 the command would have changed unknown. What docs/protocol.md leaves open is never judged: it becomes
 ``unknown`` and is learnt from the next answer (the alarm code of an error, item 1; the OUT ports after
 0MP N and 0RC's O, item 8; the position after homing, item 7; 0WC's V, A, O, item 4; what the axis does
-after the stop input is released, item 3, unless the caller says).
+after the stop input is released, item 3, unless the caller says; the OUT ports, the position and homing
+after 0CM0, which hands the controller to the external I/O, item 11).
 """
 
 from __future__ import annotations
@@ -697,6 +698,10 @@ class Conversation:
         """What a clean exchange establishes, and the read-backs it is judged against."""
         k = self.knowledge
         k.mode = Fact(getattr(c, "mode", 1), KNOWN)  # silent item 11: communicating gives mode 1
+        if k.mode.value == 0:  # silent item 11: the external I/O owns the controller until the next line
+            k.outputs, k.position = Fact(), Fact()
+            if k.homed.value is not True:
+                k.homed = Fact()
         if isinstance(a, ReadPointAnswer):
             self._read_point(a, found)
         elif c.header == "0WP":
