@@ -74,3 +74,46 @@ def test_no_read_after_0cm0_is_ever_blamed_on_the_device(written, read, pos):
     assert codes(verdicts) == []
     assert c.knowledge.outputs.value == int(read) and c.knowledge.position.value == pos
     assert c.knowledge.position.status != UNKNOWN
+
+
+# ---- item 2: Pos FFFFFF is the device stating it is not homed ----
+
+def test_0rc_ffffff_is_learnt_never_judged_against_an_older_position():
+    """0RC answering Pos FFFFFF after a move (a power cycle in a silence the line cannot show) is learnt
+    as not homed, never a readback-mismatch ("Behaviour the vendor text states": 0RC before homing)."""
+    verdicts, c = talk((b"0MV3C3001000\r\n", b"0MV3C3001000\r\n"), (b"0RC\r\n", b"0RC00002FFFFFF\r\n"))
+    assert codes(verdicts) == []
+    assert (c.knowledge.homed.value, c.knowledge.homed.status) == (False, LEARNT)
+    assert c.knowledge.position.status == UNKNOWN
+
+
+def test_homing_error_leaves_homing_to_be_learnt():
+    """After a homing error (0%%0B) the axis may not be homed: 0RC's FFFFFF after the reset is learnt
+    (docs/protocol.md "Alarms": homing after each alarm)."""
+    verdicts, c = talk((b"0MV3C3001000\r\n", b"0MV3C3001000\r\n"), (b"0MP0\r\n", b"0%%0B\r\n"),
+                       (b"0%C\r\n", b"0%C00\r\n"), (b"0RC\r\n", b"0RC00002FFFFFF\r\n"))
+    assert codes(verdicts) == []
+    assert c.knowledge.homed.value is False
+
+
+def test_a_position_after_ffffff_is_still_judged():
+    """Learnt not homed, the axis is judged from then on: 0RC answering a position with no move between
+    is a readback-mismatch ("0RC before homing")."""
+    verdicts, _ = talk((b"0RC\r\n", b"0RC00002FFFFFF\r\n"), (b"0RC\r\n", b"0RC00002000000\r\n"))
+    assert codes(verdicts) == [("readback-mismatch", "device")]
+
+
+exchanges = st.lists(st.sampled_from([
+    (b"0MV3C3001000\r\n", b"0MV3C3001000\r\n"), (b"0MP0\r\n", b"0MP00002000000\r\n"),
+    (b"0MP0\r\n", b"0%%0B\r\n"), (b"0MV3C3001000\r\n", b"0%%09\r\n"), (b"0RV\r\n", b"0%%0E\r\n"),
+    (b"0%C\r\n", b"0%C00\r\n"), (b"0RC\r\n", b"0RC00002001000\r\n"), (b"0WS12\r\n", b"0WS12\r\n"),
+    (b"0CM0\r\n", b"0CM0\r\n"), (b"0RS\r\n", b"0RS12\r\n")]), max_size=12)
+
+
+@settings(max_examples=80, deadline=None)
+@given(exchanges)
+def test_0rc_ffffff_is_never_a_readback_mismatch(before):
+    """Whatever came before, 0RC answered N, V, A 0 and Pos FFFFFF is never a readback-mismatch."""
+    verdicts, c = talk(*before, (b"0%C\r\n", b"0%C00\r\n"), (b"0RC\r\n", b"0RC00002FFFFFF\r\n"))
+    assert "readback-mismatch" not in verdicts[-1].codes
+    assert c.knowledge.homed.value is False

@@ -43,7 +43,8 @@ The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].si
 | ``estop-cleared`` | answer | 0%C00 while the stop input is *known* pressed (silent item 3) |
 | ``readback-mismatch`` | answer | a point (0WP, 0WC, an earlier 0RP), the OUT ports (0WS, an earlier
   0RS), the position (0MV, 0MP N to a known point, an earlier 0RC), the version read back otherwise; 0RC
-  answering a position while the axis is known not homed ("Behaviour": 0RC before homing) |
+  answering a position while the axis is known not homed ("Behaviour": 0RC before homing); 0RC answering
+  Pos FFFFFF is the device stating it is not homed: learnt, never judged |
 | ``unsolicited-answer`` | answer | nothing waits for it ("Violation codes") |
 | ``garbage`` | junk | bytes that form no frame ("Framing") |
 
@@ -635,6 +636,8 @@ class Conversation:
                 self._unreset_alarm = True
         if code == spec.ALARM_ESTOP:
             k.position = Fact()
+        elif code == spec.ALARM_HOMING:  # homing failed: homed or not is learnt from 0RC ("Alarms")
+            k.homed, k.position = Fact(), Fact()
         if line is not None:
             self._end_motion(line)
             if line.is_move:
@@ -753,10 +756,7 @@ class Conversation:
                 self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", k.homed,
                                "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)")
             return
-        if unknown:
-            if k.homed.value is True and k.homed.judged:
-                self._readback(found, "0RC", "Pos FFFFFF (not homed)", k.homed, "the axis homed")
-                return
+        if unknown:  # the device states it is not homed: learnt, never judged (an unseen power cycle...)
             k.homed, k.position = Fact(False, LEARNT), Fact()
             return
         if k.position.judged and a.pos != k.position.value:
