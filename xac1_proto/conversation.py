@@ -639,6 +639,7 @@ class Conversation:
         elif code == spec.ALARM_HOMING:  # homing failed: homed or not is learnt from 0RC ("Alarms")
             k.homed, k.position = Fact(), Fact()
         if line is not None:
+            k.mode = Fact(1, KNOWN)  # silent item 11: a refused line is communication too
             self._end_motion(line)
             if line.is_move:
                 k.position = Fact()  # it may have stopped anywhere (item 19)
@@ -647,6 +648,7 @@ class Conversation:
         """0%C answered 0%C00: every alarm but 0E clears. Whether 0E was still on is known only where the
         stop input is known (silent item 3); from the line alone the release happened unseen."""
         k = self.knowledge
+        k.mode = Fact(1, KNOWN)  # silent item 11: communicating gives mode 1
         if k.stop_pressed.value is True and k.stop_pressed.status == KNOWN:
             found.append(_v("estop-cleared", "the alarm reset answered 0%C00 while the emergency stop input "
                             "is pressed: emergency stop (0E) stays latched until the input is released"))
