@@ -38,8 +38,10 @@ The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].si
 | ``answer-mismatch`` | answer | another command's answer, or another N ("Frames") |
 | ``echo-mismatch`` | answer | an echo with other field values; case alone is the notice ("Behaviour") |
 | ``latch-broken`` | answer | a normal answer while an alarm is latched; a latched code changing to
-  another than 0E; a reset (0%C) answered with an alarm other than 0E: the reset did not work ("Behaviour":
-  latch and reset; our choice of code for the failed reset) |
+  another than 0E (after 0E: only where the stop input is known pressed); a reset (0%C) answered with an
+  alarm other than 0E: the reset did not work; an alarm a reset cleared during an emergency stop coming
+  back, or one held under the stop forgotten, after the release ("Behaviour": latch and reset; silent
+  item 3; our choice of code for the failed reset) |
 | ``estop-cleared`` | answer | 0%C00 while the stop input is *known* pressed (silent item 3) |
 | ``readback-mismatch`` | answer | a point (0WP, 0WC, an earlier 0RP), the OUT ports (0WS, an earlier
   0RS), the position (0MV, 0MP N to a known point, an earlier 0RC), the version read back otherwise; 0RC
@@ -124,7 +126,9 @@ class PointData:
 class Knowledge:
     """What the conversation established about the device. ``latched``: the latched alarm code (value
     None and known: nothing latched); ``storm_run``: ``0%%01`` answers in a row; ``stop_pressed``: the
-    emergency stop input, known only from an out-of-band event."""
+    emergency stop input, known only from an out-of-band event; ``under_stop``: the alarm latched when
+    the emergency stop came, held under it until a reset; ``stop_cleared``: the alarm a reset cleared
+    during the stop (it must not come back after the release)."""
 
     latched: Fact[int] = field(default_factory=Fact)
     storm_run: int = 0
@@ -135,6 +139,8 @@ class Knowledge:
     mode: Fact[int] = field(default_factory=Fact)
     version: Fact[str] = field(default_factory=Fact)
     stop_pressed: Fact[bool] = field(default_factory=Fact)
+    under_stop: Fact[int] = field(default_factory=Fact)
+    stop_cleared: Fact[int] = field(default_factory=Fact)
 
     def point(self, n: int) -> Fact[PointData]:
         return self.points.get(n, Fact())
@@ -202,6 +208,10 @@ def _v(code: spec.ViolationCode, sentence: str, where: str = _BEHAVIOUR) -> Viol
     """A conversation-level violation: the sentence, the rule's docs/protocol.md section, the code."""
     return Violation(code, None, f"{sentence}; {where} ({code})")
 
+
+# well-formed commands that raise no alarm of their own (our reading of vendor §6 and §7): an alarm
+# answer to one is a latched alarm, never a new one
+_RAISES_NO_ALARM: Final = frozenset({"0RV", "0RS", "0RC", "0WS", "0CM"})
 
 # kinds of host lines in the queue
 _COMMAND: Final = "command"  # a well-formed command: owed its answer
@@ -325,11 +335,13 @@ class Conversation:
         was_on = k.stop_pressed.value is True or k.latched.value == spec.ALARM_ESTOP
         k.stop_pressed = Fact(pressed, KNOWN)
         if pressed:
+            self._stop_over(k.latched)
             k.latched = Fact(spec.ALARM_ESTOP, KNOWN)
             k.position = Fact()
             return
-        if k.latched.value == spec.ALARM_ESTOP:
-            k.latched = Fact(None, KNOWN)
+        if k.latched.value == spec.ALARM_ESTOP:  # an alarm held under the stop is latched again
+            k.latched = k.under_stop if k.under_stop.value is not None else Fact(None, KNOWN)
+            k.under_stop = Fact()
         if unhomes and was_on:  # a release of a stop that was not on changes nothing
             k.homed, k.position = Fact(False, KNOWN), Fact()
 
@@ -624,12 +636,25 @@ class Conversation:
         but to emergency stop; a reset clears all but 0E; a refused command takes no effect (item 18)."""
         k = self.knowledge
         latched = k.latched.value
+        released = latched == spec.ALARM_ESTOP and not self._stop_known_pressed()  # perhaps, unseen
         if line is not None and line.is_reset and code != spec.ALARM_ESTOP:
             found.append(_v("latch-broken", f"the alarm reset {line.name()} was answered with alarm "
                             f"{code:02X}: 0%C clears every alarm but emergency stop (0E) and answers 0%C00"))
-        elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged:
+        elif code == k.stop_cleared.value and code != spec.ALARM_ESTOP and line is not None \
+                and line.kind == _COMMAND and line.header in _RAISES_NO_ALARM:
+            found.append(_v("latch-broken", f"alarm {code:02X} answers {line.name()} after the emergency "
+                            f"stop, but the alarm reset during the stop cleared it: 0%C clears every alarm "
+                            f"but emergency stop (0E)"))
+        elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged \
+                and not released:
             found.append(_v("latch-broken", f"alarm {latched:02X} is latched, but the answer is alarm "
                             f"{code:02X}: a latched alarm is repeated until a reset"))
+        if line is not None and line.is_reset and code == spec.ALARM_ESTOP:
+            k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
+        elif code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
+            self._stop_over(k.latched)
+        elif code != spec.ALARM_ESTOP and released:  # the stop was released unseen: held or new alarm
+            k.under_stop, k.stop_cleared = Fact(), Fact()
         if code != spec.ALARM_NONE:
             k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
             if line is None or not line.is_reset:
@@ -643,6 +668,8 @@ class Conversation:
             self._end_motion(line)
             if line.is_move:
                 k.position = Fact()  # it may have stopped anywhere (item 19)
+                if k.homed.value is not True:
+                    k.homed = Fact()  # it may have homed first ("Alarms": homing after each alarm)
 
     def _reset_done(self, found: list[Violation]) -> None:
         """0%C answered 0%C00: every alarm but 0E clears. Whether 0E was still on is known only where the
@@ -656,19 +683,34 @@ class Conversation:
         if k.latched.value == spec.ALARM_ESTOP:
             k.homed, k.position = Fact(), Fact()  # released unseen: what the axis does is item 3
         k.latched = Fact(None, KNOWN)
+        k.under_stop, k.stop_cleared = Fact(), Fact()
 
     def _latch_on_normal_answer(self, line: _Line, found: list[Violation]) -> None:
         k = self.knowledge
         latched = k.latched.value
         if latched is None or line.is_reset:
             return
-        if latched == spec.ALARM_ESTOP and not (k.stop_pressed.value is True
-                                                and k.stop_pressed.status == KNOWN):
+        if latched == spec.ALARM_ESTOP and not self._stop_known_pressed():
+            under = k.under_stop.value
+            if under is not None and k.under_stop.judged:
+                found.append(_v("latch-broken", f"{line.header} got a normal answer after the emergency "
+                                f"stop, but alarm {under:02X} was latched before it and no reset cleared it"))
             k.latched = Fact(None, KNOWN)  # the stop input was released (silent item 3)
             k.homed, k.position = Fact(), Fact()
+            k.under_stop, k.stop_cleared = Fact(), Fact()
             return
         found.append(_v("latch-broken", f"{line.header} got a normal answer while alarm {latched:02X} "
                         f"({spec.alarm_meaning(latched)}) should still be latched"))
+
+    def _stop_known_pressed(self) -> bool:
+        k = self.knowledge
+        return k.stop_pressed.value is True and k.stop_pressed.status == KNOWN
+
+    def _stop_over(self, latched: Fact[int]) -> None:
+        """Emergency stop latches over ``latched``: that alarm is held under it until a reset."""
+        k = self.knowledge
+        if latched.value != spec.ALARM_ESTOP:
+            k.under_stop, k.stop_cleared = latched, Fact(None, KNOWN)
 
     def _pairing(self, line: _Line, header: str, frame: Frame, found: list[Violation]) -> bool:
         """Answer-mismatch and echo-mismatch (docs/protocol.md "Frames"; echoes judged by fields, never

@@ -294,6 +294,7 @@ class DeviceModel:
 
     def _alarm_reset(self, cmd: fr.AlarmReset, t: float) -> tuple[fr.Frame, float]:
         if self.estop and "estop-cleared" not in self.config.deviations:
+            self.alarm = None  # vendor §6: the reset clears every alarm but emergency stop
             return fr.AlarmAnswer(code=spec.ALARM_ESTOP), 0.0  # silent item 3
         self.estop = False
         self.alarm = None
