@@ -117,3 +117,56 @@ def test_0rc_ffffff_is_never_a_readback_mismatch(before):
     verdicts, c = talk(*before, (b"0%C\r\n", b"0%C00\r\n"), (b"0RC\r\n", b"0RC00002FFFFFF\r\n"))
     assert "readback-mismatch" not in verdicts[-1].codes
     assert c.knowledge.homed.value is False
+
+
+# ---- item 5: rules that are our reading, not the vendor's ----
+
+def test_alarm_ignored_is_a_notice():
+    """The vendor says the device repeats the alarm answer; it sets the host no duty to reset first:
+    polling 0RV during an emergency stop is the notice alarm-ignored, never an error."""
+    verdicts, _ = talk((b"0RV\r\n", b"0%%0E\r\n"), (b"0RV\r\n", b"0%%0E\r\n"), (b"0RV\r\n", b"0%%0E\r\n"))
+    assert codes(verdicts) == [("alarm-ignored", "host")] * 2
+    assert all(not v.errors for v in verdicts)
+
+
+STORM = [(b"0RP3\n", b"0%%01\r\n")] + [(b"0RV\r\n", b"0%%01\r\n")] * 4
+
+
+def test_the_hosts_reset_and_first_command_after_it_are_storm_recovery_notices():
+    """At the storm limit the host's own 0%C, and its first command after 0%C00, are recovering: the
+    notice storm-recovery, not comm-error-storm; a second command is comm-error-storm again until an
+    answer ends the run (docs/protocol.md "Behaviour the vendor text states")."""
+    verdicts, _ = talk(*STORM, (b"0%C\r\n", b"0%C00\r\n"), (b"0RV\r\n", b"0%%01\r\n"),
+                       (b"0RV\r\n", b"0%%01\r\n"))
+    host = [v.codes for v in verdicts if v.kind == "host-frame"][5:]
+    assert host == [("storm-recovery",), ("storm-recovery",), ("comm-error-storm", "alarm-ignored")]
+    assert [v.errors for v in verdicts if v.kind == "host-frame"][5:7] == [(), ()]
+
+
+def test_a_garbled_alarm_answer_neither_counts_nor_ends_the_storm_run():
+    """A garbled alarm answer (a 0%% frame whose code cannot be read, or device junk) leaves the storm
+    run as it was (docs/protocol.md "Behaviour the vendor text states")."""
+    _, c = talk(*STORM[:3], (b"0RV\r\n", b"0%%\r\n"))
+    assert c.knowledge.storm_run == 3
+    c = Conversation()
+    for k, (cmd, ans) in enumerate(STORM[:3]):
+        c.host_frame(cmd, k * 0.1, k * 0.1)
+        c.device_frame(ans, k * 0.1 + 0.002, k * 0.1 + 0.002)
+    c.host_frame(b"0RV\r\n", 1.0, 1.0)
+    c.device_junk(b"\x8f%%01\r\n", 1.002, 1.002)
+    assert c.knowledge.storm_run == 3
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from([(b"0RV\r\n", b"0%%01\r\n"), (b"0RV\r\n", b"0%%0E\r\n"),
+                                 (b"0%C\r\n", b"0%C00\r\n"), (b"0%C\r\n", b"0%%0E\r\n"),
+                                 (b"0RV\r\n", b"0RV100\r\n"), (b"0XY\r\n", b"0%%01\r\n")]), max_size=14))
+def test_a_reset_is_never_comm_error_storm(pairs):
+    """Whatever came before, a well-formed 0%C, and the first command after its 0%C00, are never
+    comm-error-storm; every other command at the limit is."""
+    verdicts, c = talk(*pairs)
+    hosts = [v for v in verdicts if v.kind == "host-frame"]
+    for k, v in enumerate(hosts):
+        after_reset = k > 0 and pairs[k - 1] == (b"0%C\r\n", b"0%C00\r\n")
+        if v.header == "0%C" or after_reset:
+            assert "comm-error-storm" not in v.codes

@@ -30,9 +30,13 @@ The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].si
 | framing codes | the frame | ``codec.diagnose``: the frame table ("Framing", "Fields", "Frames") |
 | ``overlapping-command`` | host line | sent while an earlier line is owed its answer ("Framing") |
 | ``command-during-motion`` | host line | sent while a move's answer is awaited ("Behaviour") |
-| ``alarm-ignored`` | host line | not a well-formed 0%C after an alarm answer ("Behaviour": latch) |
+| ``alarm-ignored`` | host line | not a well-formed 0%C after an alarm answer ("Behaviour": latch; a notice:
+  our reading, the vendor states no duty) |
 | ``comm-error-storm`` | host line | the storm run reached the limit (host duty): the run counts ``0%%01``
-  answers, the reset answer neither counts nor ends it, any other answer ends it |
+  answers, the reset answer neither counts nor ends it, any other answer ends it; a garbled answer (junk,
+  or a frame whose fields cannot be read) neither counts nor ends it |
+| ``storm-recovery`` | host line | a well-formed 0%C, or the first line after its 0%C00, at the storm limit
+  (a notice: our reading) |
 | ``no-answer`` | its own verdict | a line's window closed, or a later line was answered ("Behaviour") |
 | ``error-accepted`` | answer | a normal answer to an error ("Behaviour": errors get ``0%%Ec``) |
 | ``answer-mismatch`` | answer | another command's answer, or another N ("Frames") |
@@ -282,6 +286,7 @@ class Conversation:
         self._queue: deque[_Line] = deque()
         self._motion: _Line | None = None
         self._unreset_alarm = False  # an alarm answer came and no well-formed 0%C since
+        self._reset_in_storm = False  # the last answer was 0%C00 to a reset sent at the storm limit
         self._next_i = 0
         self._last_t: float | None = None
         self._answer_since: float | None = None  # an answer began at this time and is still arriving
@@ -583,10 +588,15 @@ class Conversation:
         out = []
         what = header or "this frame"
         k = self.knowledge
-        if k.storm_run >= self.storm_limit:
+        good_reset = header == spec.RESET_HEADER and not error
+        if k.storm_run >= self.storm_limit and (good_reset or self._reset_in_storm):
+            which = "an alarm reset" if good_reset else "the first command after a successful alarm reset"
+            out.append(_v("storm-recovery", f"{what}, {which}, sent after {k.storm_run} communication-error "
+                          f"answers (0%%01) in a row: recovering, which the vendor text does not forbid"))
+        elif k.storm_run >= self.storm_limit:
             out.append(_v("comm-error-storm", f"{what} sent after {k.storm_run} communication-error answers "
                           f"(0%%01) in a row; the host must stop after {self.storm_limit}"))
-        good_reset = header == spec.RESET_HEADER and not error
+        self._reset_in_storm = False
         if self._unreset_alarm and not good_reset:
             out.append(_v("alarm-ignored", f"{what} sent after an alarm answer without an alarm reset (0%C)"))
         if good_reset:
@@ -676,6 +686,7 @@ class Conversation:
         stop input is known (silent item 3); from the line alone the release happened unseen."""
         k = self.knowledge
         k.mode = Fact(1, KNOWN)  # silent item 11: communicating gives mode 1
+        self._reset_in_storm = k.storm_run >= self.storm_limit
         if k.stop_pressed.value is True and k.stop_pressed.status == KNOWN:
             found.append(_v("estop-cleared", "the alarm reset answered 0%C00 while the emergency stop input "
                             "is pressed: emergency stop (0E) stays latched until the input is released"))
