@@ -183,7 +183,8 @@ class Report:
                     f"interrupted by {self.interrupted})") if head == "INCOMPLETE" else line + \
                 f" (the run was interrupted by {self.interrupted})"
         elif head == "THE DEVICE STOPPED ANSWERING":
-            line = f"{head}: the run did not complete ({counts})"
+            when = "the run did not complete" if self.abort else "during the restore, after the checks"
+            line = f"{head}: {when} ({counts})"
         elif head == "COULD NOT GO ON":
             line += "; the run stopped early (see why above)"
         if self.safety_problems:
@@ -279,7 +280,7 @@ def build(run: Any) -> Report:
         timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
         abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
         not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
-        stopped=run.stopped, safety_unverified=unverified, not_run_checks=not_run_checks,
+        stopped=run.stopped or bool(unverified), safety_unverified=unverified, not_run_checks=not_run_checks,
         interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
         command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seed=s.seed, kit_version=__version__, junit=list(run.results),

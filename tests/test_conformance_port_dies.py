@@ -26,11 +26,13 @@ MOTION = ["--allow-motion", "--safe-range", "0:0x1000"]
 
 
 class Unplug:
-    """A TCP relay host <-> simulator that closes the host's connection when command ``at`` arrives."""
+    """A TCP relay host <-> simulator that closes the host's connection when command ``at`` arrives, or
+    (``line``) when the host sends that line for the ``nth`` time."""
 
-    def __init__(self, upstream: tuple[str, int], at: int) -> None:
-        self.upstream, self.at = upstream, at
+    def __init__(self, upstream: tuple[str, int], at: int = 0, line: bytes = b"", nth: int = 1) -> None:
+        self.upstream, self.at, self.line, self.nth = upstream, at, line, nth
         self.commands = 0
+        self.seen = 0  # times ``line`` was sent
         self._server = socket.create_server(("127.0.0.1", 0))
         self.url = f"socket://127.0.0.1:{self._server.getsockname()[1]}"
         self._stop = threading.Event()
@@ -68,7 +70,8 @@ class Unplug:
                         host.sendall(data)
                         continue
                     self.commands += data.count(b"\n")
-                    if self.commands >= self.at:
+                    self.seen += data.count(self.line) if self.line else 0
+                    if (self.at and self.commands >= self.at) or (self.line and self.seen >= self.nth):
                         host.shutdown(socket.SHUT_RDWR)  # unplugged: the port is gone
                         return
                     device.sendall(data)
@@ -96,3 +99,18 @@ def test_a_port_that_dies_during_the_random_sequences_stopped_answering(device, 
     assert "Flaky" not in out and "Traceback" not in out and "FAIL" not in r.stdout, out[-4000:]
     assert last.startswith("xac1 conformance: THE DEVICE STOPPED ANSWERING: the run did not complete"), last
     assert "THE DEVICE COULD NOT BE RESTORED (not verified: point 3, point 7" in last, last
+
+
+@pytest.mark.parametrize(("line", "nth", "when"), [
+    (b"0RP5\r\n", 1, "the run did not complete"),  # during the safety snapshot: nothing written yet
+    (b"0RPF\r\n", 2, "during the restore, after the checks")])  # 0RPF: read by the snapshot, the restore
+def test_a_port_that_dies_before_or_after_the_checks_stopped_answering(device, tmp_path, line, nth, when):
+    """The port closing during the safety snapshot or during the restore: THE DEVICE STOPPED ANSWERING,
+    exit status 3, saying when; never NOT TESTED or INCOMPLETE."""
+    with Unplug(device, line=line, nth=nth) as cable:
+        r = conformance(["--port", cable.url, *MOTION, "-k", "version"], tmp_path)
+    out = r.stdout + r.stderr
+    last = r.stdout.splitlines()[-1] if r.stdout else ""
+    assert cable.seen >= nth and r.returncode == 3, out[-4000:]
+    assert "Traceback" not in out and "FAIL" not in r.stdout, out[-4000:]
+    assert last.startswith(f"xac1 conformance: THE DEVICE STOPPED ANSWERING: {when}"), last
