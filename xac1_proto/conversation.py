@@ -678,10 +678,10 @@ class Conversation:
                 and not released:
             found.append(_v("latch-broken", f"alarm {latched:02X} is latched, but the answer is alarm "
                             f"{code:02X}: a latched alarm is repeated until a reset"))
+        if code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
+            self._stop_over(k.latched)
         if line is not None and line.is_reset and code == spec.ALARM_ESTOP:
             k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
-        elif code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
-            self._stop_over(k.latched)
         elif code != spec.ALARM_ESTOP and released:  # the stop was released unseen: held or new alarm
             k.under_stop, k.stop_cleared = Fact(), Fact()
         if code != spec.ALARM_NONE:
