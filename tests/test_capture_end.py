@@ -119,3 +119,56 @@ def test_wherever_the_end_cuts_the_last_answer_no_one_is_charged(exchanges, cut,
     records = analyze(chunks)
     assert [r.violations for r in records if r.violations] == []
     assert records[-1].reason == CAPTURE_ENDED  # type: ignore[union-attr]
+
+
+def test_a_proxy_stopped_inside_an_answer_charges_no_one():
+    """``xac1 proxy`` stopped (Ctrl-C) while the device is half way through an answer: the record says
+    the capture ended inside it, no violation on either side, the command still waiting at the end."""
+    import os
+    import socket
+    import threading
+    import time
+
+    from sniffer.live import Clock, Session
+    from sniffer.proxy import Proxy, TcpHost
+
+    class Collect:
+        def __init__(self) -> None:
+            self.records: list = []
+
+        def write(self, record) -> None:
+            self.records.append(record)
+
+        def summary(self, summary) -> None:
+            self.summary = summary
+
+    master, slave = os.openpty()
+    view = Collect()
+    session, clock = Session(Analyzer(), view), Clock()
+    proxy = Proxy(TcpHost("127.0.0.1", 0), os.ttyname(slave), session, clock)
+    stop = threading.Event()
+    thread = threading.Thread(target=proxy.run, args=(stop,), daemon=True)
+    thread.start()
+    try:
+        with socket.create_connection(proxy.host.address, timeout=2) as sock:
+            sock.sendall(b"0RV\r\n")
+            got = b""
+            while not got.endswith(b"\n"):  # the device reads the command...
+                got += os.read(master, 64)
+            os.write(master, b"0RV1")  # ...and is half way through its answer
+            deadline = time.monotonic() + 3
+            seen = b""
+            while seen != b"0RV1" and time.monotonic() < deadline:
+                sock.settimeout(0.2)
+                with contextlib.suppress(TimeoutError):
+                    seen += sock.recv(16)
+            assert seen == b"0RV1"
+    finally:
+        stop.set()  # what Ctrl-C does
+        thread.join(5)
+        session.close(clock.now())
+        os.close(master)
+        os.close(slave)
+    assert [(r.type, r.violations) for r in view.records] == [("frame", ()), ("junk", ())]
+    assert view.records[-1].reason == CAPTURE_ENDED and view.records[-1].reply_to == 0
+    assert view.summary["violations"] == {} and view.summary["unanswered"] == 1
