@@ -32,7 +32,7 @@ from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
 from .fastlane import FastLane
-from .records import CleanExchange, FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
+from .records import CAPTURE_ENDED, CleanExchange, FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
@@ -157,8 +157,10 @@ class Analyzer:
         if now is not None:
             out += self._tick(now)
         for direction in (HOST, DEVICE):
-            for event in self._framers[direction].flush():
-                out += self._event(direction, event)
+            events = self._framers[direction].flush()
+            cut = events[-1] if events and _inside_frame(events[-1]) else None
+            for event in events:
+                out += self._cut(direction, event) if event is cut else self._event(direction, event)
         self._device_since = None
         out += self._records(self.conversation.close(now))
         self.tally.unanswered += self.conversation.cut_short()
@@ -204,6 +206,11 @@ class Analyzer:
         reason = event.reason if isinstance(event, Junk) else ""
         return self._records(verdicts, errors, reason)
 
+    def _cut(self, direction: Direction, event: FrameBytes | Junk) -> list[Record]:
+        """The data ended inside this frame: a record that says so, no violation (the engine's)."""
+        verdicts = self.conversation.ended_inside_frame(direction, event.raw, event.t_first, event.t_last)
+        return self._records(verdicts, self._line_errors(direction, event.offset, len(event.raw)))
+
     def _records(self, verdicts: list[Verdict], errors: tuple[str, ...] = (),
                  reason: str = "") -> list[Record]:
         out: list[Record] = []
@@ -222,6 +229,13 @@ class Analyzer:
         return tuple(e for start, end, e in ranges if start < offset + length and end > offset)
 
 
+def _inside_frame(event: FrameBytes | Junk) -> bool:
+    """Is ``event`` (the last one flushed at the end of the data) a frame the data ended inside: a frame
+    start with no LF yet, short of the longest line a frame may reach?"""
+    return (isinstance(event, Junk) and event.reason in ("flushed", "no-frame-start")
+            and event.raw[:1] in (spec.LEAD, spec.LETTER_O) and spec.LF not in event.raw)
+
+
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
     """The record of one verdict (the docs/output.md schema)."""
     if v.violations:
@@ -235,6 +249,9 @@ def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -
                              details=details, sides=sides)
     assert v.i is not None
     direction: Direction = v.sender
+    if v.kind == "cut":
+        return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=CAPTURE_ENDED, violations=(),
+                          line_errors=line_errors, reply_to=v.reply_to, latency_s=None)
     if v.kind in ("host-junk", "device-junk"):
         return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=reason or "flushed",
                           violations=codes, details=details, line_errors=line_errors, sides=sides,

@@ -95,10 +95,15 @@ class FrameRecord:
         return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
+CAPTURE_ENDED = "capture-ended"  # JunkRecord.reason: the data ended inside this frame (no violation)
+
+
 @dataclass(frozen=True)
 class JunkRecord:
-    """Bytes that form no frame (always the ``garbage`` violation). ``reason`` is the framer's:
-    ``no-frame-start``, ``truncated``, ``overflow``, ``flushed``."""
+    """Bytes that form no frame (the ``garbage`` violation). ``reason`` is the framer's:
+    ``no-frame-start``, ``truncated``, ``overflow``, ``flushed``; or ``capture-ended``: the data (a capture
+    file, a proxy stopped) ended inside this frame, which is no one's fault: no violation, and on device
+    bytes ``reply_to`` names the command whose answer was cut."""
 
     i: int
     t: float | None
@@ -249,7 +254,7 @@ class Tally:
             self.line_errors += bool(record.line_errors)
             self.add_clean_frame(record)
         elif isinstance(record, JunkRecord):
-            self.junk += 1
+            self.junk += record.reason != CAPTURE_ENDED
             self.bytes[record.dir] += len(record.raw)
             self.line_errors += bool(record.line_errors)
 

@@ -44,7 +44,7 @@ from test_fastlane_equivalence import end_of, ops_of, steps
 
 from sniffer import view as view_mod
 from sniffer.analyzer import Analyzer
-from sniffer.records import FrameRecord, JunkRecord, Record, TimeoutRecord
+from sniffer.records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, TimeoutRecord
 from sniffer.view import BATCH_LINES, TEMPLATES, JsonlView, TextView
 from xac1_proto import frames as fr
 from xac1_proto import spec
@@ -199,6 +199,10 @@ class _ReferenceTextView:
         colour = "cyan" if record.dir == "host" else "green"
         raw = record.raw.decode("latin-1").translate(_REFERENCE_SHOWN)
         head = [(f"{when} #{record.i:<4} ", ""), (f"{record.dir:<6} {arrow} {raw:<22}", colour)]
+        if isinstance(record, JunkRecord) and record.reason == CAPTURE_ENDED:  # issue 23 item 7
+            cut = "" if record.reply_to is None else f", the answer to #{record.reply_to}"
+            return [*head, (" ", ""), (f"cut: the capture ended inside this frame{cut} (no violation)",
+                                       "yellow")]
         if isinstance(record, JunkRecord):
             return [*head, (" ", ""), (f"junk ({record.reason})", "red")]
         if record.frame is None:

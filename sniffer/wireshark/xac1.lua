@@ -129,8 +129,9 @@ local VIOLATIONS = {
   { code = "no-answer", severity = "error", duty = "device", meaning = "a command (or an error) got no answer in time" },
   { code = "overlapping-command", severity = "error", duty = "host", meaning = "a new command before the previous answer" },
   { code = "command-during-motion", severity = "error", duty = "host", meaning = "a command sent while the axis moves" },
-  { code = "alarm-ignored", severity = "error", duty = "host", meaning = "the host went on after an alarm answer without a reset" },
+  { code = "alarm-ignored", severity = "notice", duty = "host", meaning = "the host went on after an alarm answer without a reset (our reading: no stated duty)" },
   { code = "comm-error-storm", severity = "error", duty = "host", meaning = "a command sent after too many communication errors in a row" },
+  { code = "storm-recovery", severity = "notice", duty = "host", meaning = "an alarm reset, or the first command after a successful one, sent after too many communication errors in a row (our reading: no stated duty)" },
   { code = "error-accepted", severity = "error", duty = "device", meaning = "a normal answer to a command that breaks a stated rule (errors get an alarm answer)" },
   { code = "latch-broken", severity = "error", duty = "device", meaning = "a normal answer while an alarm should still be latched" },
   { code = "estop-cleared", severity = "error", duty = "device", meaning = "emergency stop cleared by an alarm reset" },
@@ -315,12 +316,26 @@ local function find_spec(raw, role, out)
   local head = raw:sub(1, HEADER_WIDTH)
   local fs = SPECS[role][head]
   if fs then return fs end
-  if raw:sub(1, 1) == LETTER_O_CHAR then
+  local lead_o = raw:sub(1, 1) == LETTER_O_CHAR
+  if lead_o then
     fs = SPECS[role][LEAD .. head:sub(2)]
     if fs then
       add(out, "letter-o", 0, fs.header .. " " .. role .. ": byte 0: the letter O, not the digit 0")
       return fs
     end
+  end
+  -- docs/protocol.md "Framing": a header in lower case (0rv) is read as its command, with a notice
+  local upper = head:upper()
+  fs = SPECS[role][lead_o and (LEAD .. upper:sub(2)) or upper]
+  if fs and not head:find("[\128-\255]") then
+    if lead_o then
+      add(out, "letter-o", 0, fs.header .. " " .. role .. ": byte 0: the letter O, not the digit 0")
+    end
+    local at = 1
+    while at < HEADER_WIDTH and head:sub(at + 1, at + 1) == fs.header:sub(at + 1, at + 1) do at = at + 1 end
+    add(out, "lowercase-hex", at, fs.header .. " " .. role .. ": byte " .. at .. ": expected the header " ..
+        fs.header .. " in upper case, got " .. string.format("%q", head))
+    return fs
   end
   add(out, "unknown-command", 0, role .. ": " .. string.format("%q", head) .. " is no " .. role .. " header")
   return nil
