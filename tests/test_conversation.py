@@ -109,7 +109,7 @@ TABLE = [
     ("storm_after_the_fifth_comm_error",
      seq(*STORM, (b"0%C\r\n", b"0%C00\r\n")),
      [("bad-length", "host"), ("bad-terminator", "host")] + [("alarm-ignored", "host")] * 4
-     + [("comm-error-storm", "host")]),
+     + [("storm-recovery", "host")]),
     ("storm_run_ends_on_a_normal_answer_even_with_a_framing_fault",
      seq(*STORM[:4], (b"0RV\r\n", b"0RV100 \r\n"), (b"0RV\r\n", b"0%%01\r\n"), (b"0RV\r\n", b"0%%01\r\n"),
          (b"0RV\r\n", b"0RV100\r\n")),

@@ -127,8 +127,9 @@ def test_command_during_motion_and_overlap():
 
 def test_storm_after_fifth_comm_error():
     """After the 5th 0%%01 answer in a row (latched repeats count, a reset answer does not end the run)
-    any further command is comm-error-storm; a normal answer ends the run (docs/protocol.md "Behaviour the
-    vendor text states")."""
+    any further command is comm-error-storm but the host's own reset and its first command after 0%C00
+    (the notice storm-recovery); a normal answer ends the run (docs/protocol.md "Behaviour the vendor
+    text states")."""
     script = []
     t = 0.0
     for _ in range(3):
@@ -143,8 +144,8 @@ def test_storm_after_fifth_comm_error():
     host = [(r.raw, r.violations) for r in recs if r.dir == H and r.violations]
     # 0RP0 is field-range (N 1-F); the 4th 0RV is sent after 5 comm errors, so is the 0%C and the next 0RV
     assert host[:3] == [(b"0RP0\r\n", ("field-range",))] * 3
-    assert host[3:] == [(b"0RV\r\n", ("alarm-ignored",)), (b"0%C\r\n", ("comm-error-storm",)),
-                        (b"0RV\r\n", ("comm-error-storm",))]
+    assert host[3:] == [(b"0RV\r\n", ("alarm-ignored",)), (b"0%C\r\n", ("storm-recovery",)),
+                        (b"0RV\r\n", ("storm-recovery",))]
     assert all_codes([r for r in recs if r.dir == D]) == []
 
 

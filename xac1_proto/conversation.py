@@ -30,20 +30,27 @@ The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].si
 | framing codes | the frame | ``codec.diagnose``: the frame table ("Framing", "Fields", "Frames") |
 | ``overlapping-command`` | host line | sent while an earlier line is owed its answer ("Framing") |
 | ``command-during-motion`` | host line | sent while a move's answer is awaited ("Behaviour") |
-| ``alarm-ignored`` | host line | not a well-formed 0%C after an alarm answer ("Behaviour": latch) |
+| ``alarm-ignored`` | host line | not a well-formed 0%C after an alarm answer ("Behaviour": latch; a notice:
+  our reading, the vendor states no duty) |
 | ``comm-error-storm`` | host line | the storm run reached the limit (host duty): the run counts ``0%%01``
-  answers, the reset answer neither counts nor ends it, any other answer ends it |
+  answers, the reset answer neither counts nor ends it, any other answer ends it; a garbled answer (junk,
+  or a frame whose fields cannot be read) neither counts nor ends it |
+| ``storm-recovery`` | host line | a well-formed 0%C, or the first line after its 0%C00, at the storm limit
+  (a notice: our reading) |
 | ``no-answer`` | its own verdict | a line's window closed, or a later line was answered ("Behaviour") |
 | ``error-accepted`` | answer | a normal answer to an error ("Behaviour": errors get ``0%%Ec``) |
 | ``answer-mismatch`` | answer | another command's answer, or another N ("Frames") |
 | ``echo-mismatch`` | answer | an echo with other field values; case alone is the notice ("Behaviour") |
 | ``latch-broken`` | answer | a normal answer while an alarm is latched; a latched code changing to
-  another than 0E; a reset (0%C) answered with an alarm other than 0E: the reset did not work ("Behaviour":
-  latch and reset; our choice of code for the failed reset) |
+  another than 0E (after 0E: only where the stop input is known pressed); a reset (0%C) answered with an
+  alarm other than 0E: the reset did not work; an alarm a reset cleared during an emergency stop coming
+  back, or one held under the stop forgotten, after the release ("Behaviour": latch and reset; silent
+  item 3; our choice of code for the failed reset) |
 | ``estop-cleared`` | answer | 0%C00 while the stop input is *known* pressed (silent item 3) |
 | ``readback-mismatch`` | answer | a point (0WP, 0WC, an earlier 0RP), the OUT ports (0WS, an earlier
   0RS), the position (0MV, 0MP N to a known point, an earlier 0RC), the version read back otherwise; 0RC
-  answering a position while the axis is known not homed ("Behaviour": 0RC before homing) |
+  answering a position while the axis is known not homed ("Behaviour": 0RC before homing); 0RC answering
+  Pos FFFFFF is the device stating it is not homed: learnt, never judged |
 | ``unsolicited-answer`` | answer | nothing waits for it ("Violation codes") |
 | ``garbage`` | junk | bytes that form no frame ("Framing") |
 
@@ -52,7 +59,8 @@ refused with an alarm takes no effect (silent item 18); a garbled, missing or fa
 the command would have changed unknown. What docs/protocol.md leaves open is never judged: it becomes
 ``unknown`` and is learnt from the next answer (the alarm code of an error, item 1; the OUT ports after
 0MP N and 0RC's O, item 8; the position after homing, item 7; 0WC's V, A, O, item 4; what the axis does
-after the stop input is released, item 3, unless the caller says).
+after the stop input is released, item 3, unless the caller says; the OUT ports, the position and homing
+after 0CM0, which hands the controller to the external I/O, item 11).
 """
 
 from __future__ import annotations
@@ -122,7 +130,9 @@ class PointData:
 class Knowledge:
     """What the conversation established about the device. ``latched``: the latched alarm code (value
     None and known: nothing latched); ``storm_run``: ``0%%01`` answers in a row; ``stop_pressed``: the
-    emergency stop input, known only from an out-of-band event."""
+    emergency stop input, known only from an out-of-band event; ``under_stop``: the alarm latched when
+    the emergency stop came, held under it until a reset; ``stop_cleared``: the alarm a reset cleared
+    during the stop (it must not come back after the release)."""
 
     latched: Fact[int] = field(default_factory=Fact)
     storm_run: int = 0
@@ -133,6 +143,8 @@ class Knowledge:
     mode: Fact[int] = field(default_factory=Fact)
     version: Fact[str] = field(default_factory=Fact)
     stop_pressed: Fact[bool] = field(default_factory=Fact)
+    under_stop: Fact[int] = field(default_factory=Fact)
+    stop_cleared: Fact[int] = field(default_factory=Fact)
 
     def point(self, n: int) -> Fact[PointData]:
         return self.points.get(n, Fact())
@@ -200,6 +212,10 @@ def _v(code: spec.ViolationCode, sentence: str, where: str = _BEHAVIOUR) -> Viol
     """A conversation-level violation: the sentence, the rule's docs/protocol.md section, the code."""
     return Violation(code, None, f"{sentence}; {where} ({code})")
 
+
+# well-formed commands that raise no alarm of their own (our reading of vendor §6 and §7): an alarm
+# answer to one is a latched alarm, never a new one
+_RAISES_NO_ALARM: Final = frozenset({"0RV", "0RS", "0RC", "0WS", "0CM"})
 
 # kinds of host lines in the queue
 _COMMAND: Final = "command"  # a well-formed command: owed its answer
@@ -270,6 +286,7 @@ class Conversation:
         self._queue: deque[_Line] = deque()
         self._motion: _Line | None = None
         self._unreset_alarm = False  # an alarm answer came and no well-formed 0%C since
+        self._reset_in_storm = False  # the last answer was 0%C00 to a reset sent at the storm limit
         self._next_i = 0
         self._last_t: float | None = None
         self._answer_since: float | None = None  # an answer began at this time and is still arriving
@@ -323,11 +340,13 @@ class Conversation:
         was_on = k.stop_pressed.value is True or k.latched.value == spec.ALARM_ESTOP
         k.stop_pressed = Fact(pressed, KNOWN)
         if pressed:
+            self._stop_over(k.latched)
             k.latched = Fact(spec.ALARM_ESTOP, KNOWN)
             k.position = Fact()
             return
-        if k.latched.value == spec.ALARM_ESTOP:
-            k.latched = Fact(None, KNOWN)
+        if k.latched.value == spec.ALARM_ESTOP:  # an alarm held under the stop is latched again
+            k.latched = k.under_stop if k.under_stop.value is not None else Fact(None, KNOWN)
+            k.under_stop = Fact()
         if unhomes and was_on:  # a release of a stop that was not on changes nothing
             k.homed, k.position = Fact(False, KNOWN), Fact()
 
@@ -569,10 +588,15 @@ class Conversation:
         out = []
         what = header or "this frame"
         k = self.knowledge
-        if k.storm_run >= self.storm_limit:
+        good_reset = header == spec.RESET_HEADER and not error
+        if k.storm_run >= self.storm_limit and (good_reset or self._reset_in_storm):
+            which = "an alarm reset" if good_reset else "the first command after a successful alarm reset"
+            out.append(_v("storm-recovery", f"{what}, {which}, sent after {k.storm_run} communication-error "
+                          f"answers (0%%01) in a row: recovering, which the vendor text does not forbid"))
+        elif k.storm_run >= self.storm_limit:
             out.append(_v("comm-error-storm", f"{what} sent after {k.storm_run} communication-error answers "
                           f"(0%%01) in a row; the host must stop after {self.storm_limit}"))
-        good_reset = header == spec.RESET_HEADER and not error
+        self._reset_in_storm = False
         if self._unreset_alarm and not good_reset:
             out.append(_v("alarm-ignored", f"{what} sent after an alarm answer without an alarm reset (0%C)"))
         if good_reset:
@@ -622,27 +646,47 @@ class Conversation:
         but to emergency stop; a reset clears all but 0E; a refused command takes no effect (item 18)."""
         k = self.knowledge
         latched = k.latched.value
+        released = latched == spec.ALARM_ESTOP and not self._stop_known_pressed()  # perhaps, unseen
         if line is not None and line.is_reset and code != spec.ALARM_ESTOP:
             found.append(_v("latch-broken", f"the alarm reset {line.name()} was answered with alarm "
                             f"{code:02X}: 0%C clears every alarm but emergency stop (0E) and answers 0%C00"))
-        elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged:
+        elif code == k.stop_cleared.value and code != spec.ALARM_ESTOP and line is not None \
+                and line.kind == _COMMAND and line.header in _RAISES_NO_ALARM:
+            found.append(_v("latch-broken", f"alarm {code:02X} answers {line.name()} after the emergency "
+                            f"stop, but the alarm reset during the stop cleared it: 0%C clears every alarm "
+                            f"but emergency stop (0E)"))
+        elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged \
+                and not released:
             found.append(_v("latch-broken", f"alarm {latched:02X} is latched, but the answer is alarm "
                             f"{code:02X}: a latched alarm is repeated until a reset"))
+        if line is not None and line.is_reset and code == spec.ALARM_ESTOP:
+            k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
+        elif code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
+            self._stop_over(k.latched)
+        elif code != spec.ALARM_ESTOP and released:  # the stop was released unseen: held or new alarm
+            k.under_stop, k.stop_cleared = Fact(), Fact()
         if code != spec.ALARM_NONE:
             k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
             if line is None or not line.is_reset:
                 self._unreset_alarm = True
         if code == spec.ALARM_ESTOP:
             k.position = Fact()
+        elif code == spec.ALARM_HOMING:  # homing failed: homed or not is learnt from 0RC ("Alarms")
+            k.homed, k.position = Fact(), Fact()
         if line is not None:
+            k.mode = Fact(1, KNOWN)  # silent item 11: a refused line is communication too
             self._end_motion(line)
             if line.is_move:
                 k.position = Fact()  # it may have stopped anywhere (item 19)
+                if k.homed.value is not True:
+                    k.homed = Fact()  # it may have homed first ("Alarms": homing after each alarm)
 
     def _reset_done(self, found: list[Violation]) -> None:
         """0%C answered 0%C00: every alarm but 0E clears. Whether 0E was still on is known only where the
         stop input is known (silent item 3); from the line alone the release happened unseen."""
         k = self.knowledge
+        k.mode = Fact(1, KNOWN)  # silent item 11: communicating gives mode 1
+        self._reset_in_storm = k.storm_run >= self.storm_limit
         if k.stop_pressed.value is True and k.stop_pressed.status == KNOWN:
             found.append(_v("estop-cleared", "the alarm reset answered 0%C00 while the emergency stop input "
                             "is pressed: emergency stop (0E) stays latched until the input is released"))
@@ -650,19 +694,34 @@ class Conversation:
         if k.latched.value == spec.ALARM_ESTOP:
             k.homed, k.position = Fact(), Fact()  # released unseen: what the axis does is item 3
         k.latched = Fact(None, KNOWN)
+        k.under_stop, k.stop_cleared = Fact(), Fact()
 
     def _latch_on_normal_answer(self, line: _Line, found: list[Violation]) -> None:
         k = self.knowledge
         latched = k.latched.value
         if latched is None or line.is_reset:
             return
-        if latched == spec.ALARM_ESTOP and not (k.stop_pressed.value is True
-                                                and k.stop_pressed.status == KNOWN):
+        if latched == spec.ALARM_ESTOP and not self._stop_known_pressed():
+            under = k.under_stop.value
+            if under is not None and k.under_stop.judged:
+                found.append(_v("latch-broken", f"{line.header} got a normal answer after the emergency "
+                                f"stop, but alarm {under:02X} was latched before it and no reset cleared it"))
             k.latched = Fact(None, KNOWN)  # the stop input was released (silent item 3)
             k.homed, k.position = Fact(), Fact()
+            k.under_stop, k.stop_cleared = Fact(), Fact()
             return
         found.append(_v("latch-broken", f"{line.header} got a normal answer while alarm {latched:02X} "
                         f"({spec.alarm_meaning(latched)}) should still be latched"))
+
+    def _stop_known_pressed(self) -> bool:
+        k = self.knowledge
+        return k.stop_pressed.value is True and k.stop_pressed.status == KNOWN
+
+    def _stop_over(self, latched: Fact[int]) -> None:
+        """Emergency stop latches over ``latched``: that alarm is held under it until a reset."""
+        k = self.knowledge
+        if latched.value != spec.ALARM_ESTOP:
+            k.under_stop, k.stop_cleared = latched, Fact(None, KNOWN)
 
     def _pairing(self, line: _Line, header: str, frame: Frame, found: list[Violation]) -> bool:
         """Answer-mismatch and echo-mismatch (docs/protocol.md "Frames"; echoes judged by fields, never
@@ -697,6 +756,10 @@ class Conversation:
         """What a clean exchange establishes, and the read-backs it is judged against."""
         k = self.knowledge
         k.mode = Fact(getattr(c, "mode", 1), KNOWN)  # silent item 11: communicating gives mode 1
+        if k.mode.value == 0:  # silent item 11: the external I/O owns the controller until the next line
+            k.outputs, k.position = Fact(), Fact()
+            if k.homed.value is not True:
+                k.homed = Fact()
         if isinstance(a, ReadPointAnswer):
             self._read_point(a, found)
         elif c.header == "0WP":
@@ -748,10 +811,7 @@ class Conversation:
                 self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", k.homed,
                                "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)")
             return
-        if unknown:
-            if k.homed.value is True and k.homed.judged:
-                self._readback(found, "0RC", "Pos FFFFFF (not homed)", k.homed, "the axis homed")
-                return
+        if unknown:  # the device states it is not homed: learnt, never judged (an unseen power cycle...)
             k.homed, k.position = Fact(False, LEARNT), Fact()
             return
         if k.position.judged and a.pos != k.position.value:

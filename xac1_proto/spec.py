@@ -227,7 +227,7 @@ Duty = TypingLiteral["host", "device", "sender"]
 ViolationCode = TypingLiteral[
     "bad-length", "bad-terminator", "letter-o", "lowercase-hex", "missing-2", "field-range",
     "unknown-command", "garbage", "echo-mismatch", "answer-mismatch", "unsolicited-answer", "no-answer",
-    "overlapping-command", "command-during-motion", "alarm-ignored", "comm-error-storm",
+    "overlapping-command", "command-during-motion", "alarm-ignored", "comm-error-storm", "storm-recovery",
     "error-accepted", "latch-broken", "estop-cleared", "readback-mismatch", "reserved-alarm",
     "unknown-alarm",
 ]
@@ -271,10 +271,13 @@ VIOLATION_SPECS: Final[tuple[ViolationSpec, ...]] = (
     ViolationSpec("overlapping-command", ERROR, HOST_SIDE, "a new command before the previous answer",
                   _F),
     ViolationSpec("command-during-motion", ERROR, HOST_SIDE, "a command sent while the axis moves", _B),
-    ViolationSpec("alarm-ignored", ERROR, HOST_SIDE,
-                  "the host went on after an alarm answer without a reset", _B),
+    ViolationSpec("alarm-ignored", NOTICE, HOST_SIDE,
+                  "the host went on after an alarm answer without a reset (our reading: no stated duty)", _B),
     ViolationSpec("comm-error-storm", ERROR, HOST_SIDE,
                   "a command sent after too many communication errors in a row", _B),
+    ViolationSpec("storm-recovery", NOTICE, HOST_SIDE,
+                  "an alarm reset, or the first command after a successful one, sent after too many "
+                  "communication errors in a row (our reading: no stated duty)", _B),
     ViolationSpec("error-accepted", ERROR, DEVICE_SIDE,
                   "a normal answer to a command that breaks a stated rule (errors get an alarm answer)",
                   _B),

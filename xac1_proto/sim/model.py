@@ -147,23 +147,27 @@ class DeviceModel:
         self.commands += 1
         frame = self._decode(line, overflow)
         if frame is None:
+            self._update_mode(None)  # silent item 11: a malformed line is communication too
             code = self.latched or self.config.malformed_alarm
             answer: fr.Frame = self._alarm(code)
             if "silent-on-malformed" in self.config.deviations:
                 return []
             return [self._send(answer, t)]
         if self.latched is not None and frame.header != spec.RESET_HEADER:
+            self._update_mode(None)
             return [self._send(fr.AlarmAnswer(code=self.latched), t)]
         answer, moving = _HANDLERS[frame.header](self, frame, t)
-        if not isinstance(answer, fr.AlarmAnswer):  # silent item 18: a refused command takes no effect
-            self._update_mode(frame)
+        # silent item 18: a refused command takes no effect (a refused 0CM0 switches nothing), but it is
+        # communication: item 11, mode 1
+        self._update_mode(None if isinstance(answer, fr.AlarmAnswer) else frame)
         out = self._send(answer, t, moving)
         if frame.header in spec.MOVE_HEADERS:
             self.busy_until = out.due
         return [out]
 
     def _update_mode(self, frame: fr.Frame | None) -> None:
-        """Silent item 11: any command leaves mode 1, except 0CM0 (and, sticky, until 0CM1)."""
+        """Silent item 11: any line leaves mode 1 (``frame`` None: malformed or refused), except a 0CM0
+        carried out (and, sticky, until 0CM1)."""
         if isinstance(frame, fr.SwitchMode):
             self.mode = frame.mode
         elif not (self.config.cm0_sticky and self.mode == 0 and self.commands > 1):
@@ -290,6 +294,7 @@ class DeviceModel:
 
     def _alarm_reset(self, cmd: fr.AlarmReset, t: float) -> tuple[fr.Frame, float]:
         if self.estop and "estop-cleared" not in self.config.deviations:
+            self.alarm = None  # vendor §6: the reset clears every alarm but emergency stop
             return fr.AlarmAnswer(code=spec.ALARM_ESTOP), 0.0  # silent item 3
         self.estop = False
         self.alarm = None
