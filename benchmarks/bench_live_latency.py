@@ -2,7 +2,7 @@
 
 ``xac1 sniff`` feeds each chunk as a tap gives it and ticks once a poll (``sniffer.live``: every 50 ms at
 most), so a poll may end between a command and its answer. This replays a seeded conversation
-(``traffic.py``, clean and anomalous) through ``Analyzer.feed`` with a ``tick`` after each chunk with
+(``traffic.py``: cell, random and anomalous) through ``Analyzer.feed`` with a ``tick`` after each chunk with
 probability ``--tick`` (1: every chunk, the worst case for the fast lane: nothing can be memoised across a
 tick), and reports microseconds per chunk for ``Analyzer(fast=True)`` (what ``xac1 sniff`` runs) and
 ``Analyzer(fast=False)`` (the full path alone), best of ``--rounds``, and their ratio. Issue 14: the
@@ -49,14 +49,14 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     print(f"{args.exchanges} exchanges, best of {args.rounds}; microseconds per chunk")
     print(f"{'traffic':10} {'tick':>5} {'fast lane':>10} {'full path':>10} {'ratio':>6}")
-    for anomalous in (False, True):
-        chunks = list(traffic.conversation(args.exchanges, args.seed, anomalous))
+    for kind in traffic.KINDS:
+        chunks = list(traffic.conversation(args.exchanges, args.seed, kind))
         for p in args.tick:
             rng = random.Random(args.seed)
             ticks = [rng.random() < p for _ in chunks]
             fast = min(per_chunk_us(chunks, ticks, True) for _ in range(args.rounds))
             full = min(per_chunk_us(chunks, ticks, False) for _ in range(args.rounds))
-            print(f"{'anomalous' if anomalous else 'clean':10} {p:5.2f} {fast:10.1f} {full:10.1f} "
+            print(f"{kind:10} {p:5.2f} {fast:10.1f} {full:10.1f} "
                   f"{fast / full:6.2f}")
     return 0
 
