@@ -9,7 +9,7 @@ Optimized pieces (issue 14) and their references below:
 - ``Tally.add``: no counter updates for records without violations;
 - ``FrameRecord.fields``: field names looked up once a frame class (was ``Frame.fields()``);
 - ``sniffer.io.base.wallclock``: the whole local second cached (socat headers);
-- ``fastcodec.decode_clean``: the last distinct clean frames remembered (frames are immutable);
+- ``codec.read_frame``: the last distinct lines' readings remembered (frames are immutable);
 - ``conversation._fields``: ``Frame.fields()`` with the names looked up once a class;
 - ``TextView``: a line is built as styled pieces and, without colour, written as their plain text, in
   batches offline (was rich markup, parsed and printed by the console line by line); ``show_raw`` is one
@@ -51,7 +51,6 @@ from sniffer.records import FrameRecord, JunkRecord, Record, TimeoutRecord, side
 from sniffer.view import TextView
 from xac1_proto import codec as codec_mod
 from xac1_proto import conversation as conversation_mod
-from xac1_proto import fastcodec as fastcodec_mod
 from xac1_proto import framer as framer_mod
 from xac1_proto import frames as frames_mod
 from xac1_proto import spec
@@ -240,6 +239,11 @@ def _reference_wallclock(date: str, clock: str) -> float:
         raise ValueError(f"impossible date or time {shown(date, 12)} {shown(clock, 24)} ({exc})") from None
 
 
+def _reference_read_frame(data: bytes, role: str) -> codec_mod.Reading:
+    """``codec.read_frame`` with nothing remembered."""
+    return codec_mod._read.__wrapped__(bytes(data), role)  # type: ignore[attr-defined,no-any-return]
+
+
 @contextlib.contextmanager
 def reference() -> Iterator[None]:
     """Every optimized piece swapped for the code it replaced."""
@@ -252,7 +256,8 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(Analyzer, "_line_errors", _reference_line_errors))
         stack.enter_context(mock.patch.object(records_mod.Tally, "add", _reference_tally_add))
         stack.enter_context(mock.patch.object(FrameRecord, "fields", property(_reference_record_fields)))
-        stack.enter_context(mock.patch.object(codec_mod, "decode_clean", fastcodec_mod._decode_clean))
+        stack.enter_context(mock.patch.object(codec_mod, "read_frame", _reference_read_frame))
+        stack.enter_context(mock.patch.object(conversation_mod, "read_frame", _reference_read_frame))
         stack.enter_context(mock.patch.object(conversation_mod, "_fields", lambda frame: frame.fields()))
         stack.enter_context(mock.patch.object(socat_mod, "wallclock", _reference_wallclock))
         stack.enter_context(mock.patch.object(TextView, "write", _reference_text_write))
@@ -266,7 +271,7 @@ def test_reference_is_really_swapped_in():
     with reference():
         assert framer_mod.Framer._frame_candidate is not optimized
         assert pcap_mod._Buffer is _ReferenceBuffer and socat_mod.wallclock is _reference_wallclock
-        assert codec_mod.decode_clean is fastcodec_mod._decode_clean
+        assert codec_mod.read_frame is _reference_read_frame
     assert framer_mod.Framer._frame_candidate is optimized and pcap_mod._Buffer is not _ReferenceBuffer
 
 

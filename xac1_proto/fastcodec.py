@@ -12,7 +12,6 @@ grammar itself stays defined once, in ``spec.py`` and ``grammar.py``.
 
 from __future__ import annotations
 
-import functools
 import re
 from collections.abc import Callable
 from typing import Final
@@ -69,21 +68,8 @@ _TABLE: Final[dict[tuple[bytes, str], _Entry]] = {
 
 
 def decode_clean(data: bytes, role: str) -> Frame | None:
-    """The frame ``data`` holds if it is well formed and every field in range, else None. Traffic repeats
-    a few frames, and a frame is immutable: the last ``CACHE_SIZE`` distinct answers are remembered."""
-    return _decode_cached(bytes(data), role)
-
-
-CACHE_SIZE: Final = 4096  # distinct (bytes, role) remembered: about 1 MiB at most
-
-
-@functools.lru_cache(maxsize=CACHE_SIZE)
-def _decode_cached(data: bytes, role: str) -> Frame | None:
-    return _decode_clean(data, role)
-
-
-def _decode_clean(data: bytes, role: str) -> Frame | None:
-    """``decode_clean`` without the cache."""
+    """The frame ``data`` holds if it is well formed and every field in range, else None (the caller,
+    ``codec.read_frame``, remembers the last distinct lines)."""
     entry = _TABLE.get((data[: spec.HEADER_WIDTH], role))
     if entry is None:
         return None
