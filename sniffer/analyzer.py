@@ -81,27 +81,24 @@ class Analyzer:
         """One chunk: time passes to its time, its bytes are framed, each event judged and counted."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        direction = chunk.dir
-        t = chunk.t
-        data = chunk.data
-        if direction == HOST:
-            framer = self._framers[HOST]
-        elif direction == DEVICE:
-            framer = self._framers[DEVICE]
-        else:
+        t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
+        framer = self._framers.get(direction)
+        if framer is None:
             raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
         if t is not None:
             self._tick(t, out)
-        if chunk.error and data:
-            self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), chunk.error))
-        pending_before = framer.pending
-        events = framer.feed(data, t)
+        if error and data:
+            self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
         if direction == DEVICE and data:
+            pending_before = framer.pending
+            events = framer.feed(data, t)
             self._device_last = t
-            if framer.pending == 0:
+            if not framer.pending:
                 self._device_since = None
-            elif pending_before == 0:
+            elif not pending_before:
                 self._device_since = t  # else keep the older time: never expire too early
+        else:
+            events = framer.feed(data, t)
         for event in events:
             self._event(direction, event, out)
 
@@ -113,8 +110,8 @@ class Analyzer:
 
     def _tick(self, now: float, out: list[Record] | None) -> None:
         framer = self._framers[DEVICE]
-        if (self.device_idle_flush is not None and framer.pending and self._device_last is not None
-                and now - self._device_last >= self.device_idle_flush):
+        flush, last = self.device_idle_flush, self._device_last
+        if flush is not None and last is not None and now - last >= flush and framer.pending:
             self._device_since = None
             for event in framer.flush():
                 self._event(DEVICE, event, out)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from collections import Counter
 from typing import Any, NamedTuple
 
@@ -191,8 +190,8 @@ class LatencyStats:
         self._us: dict[int, int] = {}
 
     def add(self, seconds: float) -> None:
-        if not math.isfinite(seconds) or abs(seconds) > _MAX_LATENCY_S:
-            return  # a damaged time, not a latency
+        if not -_MAX_LATENCY_S <= seconds <= _MAX_LATENCY_S:
+            return  # a damaged time (NaN, infinite, absurd), not a latency
         self.n += 1
         us = round(seconds * 1e6)
         self._us[us] = self._us.get(us, 0) + 1
@@ -257,7 +256,8 @@ class Tally:
         """Count a frame of ``size`` bytes: a command by its header, an answer with its latency."""
         self.frames[direction] += 1
         self.bytes[direction] += size
-        header = header or "?"
+        if not header:
+            header = "?"
         if direction == "host":
             self.commands[header] += 1
             headers = self._headers

@@ -239,9 +239,12 @@ def _reference_wallclock(date: str, clock: str) -> float:
         raise ValueError(f"impossible date or time {shown(date, 12)} {shown(clock, 24)} ({exc})") from None
 
 
+_UNCACHED_READ = codec_mod.read_frame.__wrapped__
+
+
 def _reference_read_frame(data: bytes, role: str) -> codec_mod.Reading:
     """``codec.read_frame`` with nothing remembered."""
-    return codec_mod._read.__wrapped__(bytes(data), role)  # type: ignore[attr-defined,no-any-return]
+    return _UNCACHED_READ(bytes(data), role)  # type: ignore[no-any-return]
 
 
 @contextlib.contextmanager

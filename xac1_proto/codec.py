@@ -182,7 +182,7 @@ def _walk(body: bytes, fs: spec.FrameSpec, out: list[Violation]) -> dict[str, in
 
 def diagnose(data: bytes, role: str) -> tuple[Frame | None, list[Violation]]:
     """Decode ``data`` as far as possible and list every deviation; never raises on bad data."""
-    reading = read_frame(data, role)
+    reading = read_frame(bytes(data), role)
     return reading.frame, list(reading.violations)
 
 
@@ -200,14 +200,11 @@ class Reading(NamedTuple):
 READ_CACHE: Final = 4096  # distinct (bytes, role) remembered: about 2 MiB at most
 
 
-def read_frame(data: bytes, role: str) -> Reading:
-    """``diagnose`` with the header and the verdict on errors: a pure function of the bytes, so the last
-    ``READ_CACHE`` distinct lines are remembered (traffic repeats its commands and most answers)."""
-    return _read(data if type(data) is bytes else bytes(data), role)
-
-
 @functools.lru_cache(maxsize=READ_CACHE)
-def _read(data: bytes, role: str) -> Reading:
+def read_frame(data: bytes, role: str) -> Reading:
+    """``diagnose`` with the header and the verdict on errors, of ``data`` as ``bytes``: a pure function
+    of the bytes, so the last ``READ_CACHE`` distinct lines are remembered (traffic repeats its commands
+    and most answers)."""
     checked = _check_role(role)
     clean = decode_clean(data, checked)  # most traffic: a well-formed frame, no walk needed
     if clean is not None:

@@ -379,15 +379,18 @@ class Conversation:
         out = [] if t_first is None else self.tick(t_first, self._answer_since)
         i = self._next_i
         self._next_i = i + 1
+        raw = raw if type(raw) is bytes else bytes(raw)
         frame, violations, header, error = read_frame(raw, spec.COMMAND)
-        found = [*violations, *self._host_duties(header, error)]
+        found = [*violations]
+        if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
+            found += self._host_duties(header, error)
         line = self._enqueue(i, _ERROR if error else _COMMAND, header, None if error else frame,
                              t_last, found, window)
         if line.is_move and self.knowledge.latched.value is None and self._motion is None \
                 and line.kind == _COMMAND and not line.overlapped:
             self._motion = line
-        out.append(Verdict("host-frame", HOST, i, raw if type(raw) is bytes else bytes(raw), header, frame,
-                           tuple(found), None, None, t_first, t_last, line.waited_s))
+        out.append(Verdict("host-frame", HOST, i, raw, header, frame, tuple(found), None, None, t_first,
+                           t_last, line.waited_s))
         return out
 
     def host_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -411,6 +414,7 @@ class Conversation:
         self._answer_since = None
         i = self._next_i
         self._next_i = i + 1
+        raw = raw if type(raw) is bytes else bytes(raw)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
         found = [*violations]
         line, skipped = self._pair(header, t_first)
@@ -423,7 +427,6 @@ class Conversation:
         elif line.t_last is not None and t_first is not None:
             latency = t_first - line.t_last
         self._judge_answer(line, header, frame, found)
-        raw = raw if type(raw) is bytes else bytes(raw)
         out.append(Verdict("device-frame", DEVICE, i, raw, header, frame, tuple(found),
                            None if line is None else line.i, latency, t_first, t_last))
         return out
@@ -520,7 +523,7 @@ class Conversation:
             kind = _DISCARD
             found.append(_v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
                             f"waits for its answer"))
-        else:
+        elif self._queue:
             first = next((w for w in self._queue if w.owed), None)
             if first is not None:
                 overlapped = True
@@ -581,8 +584,11 @@ class Conversation:
         if head is None or (self._answer_since is not None and head.deadline is not None
                             and self._answer_since <= head.deadline):
             return out
-        if all(w.deadline is None or not w.deadline < now for w in self._queue):
-            return out  # every window still open (the usual tick)
+        if len(self._queue) == 1:
+            if head.deadline is None or not head.deadline < now:
+                return out  # its window is still open (the usual tick)
+        elif all(w.deadline is None or not w.deadline < now for w in self._queue):
+            return out
         keep: deque[_Line] = deque()
         for w in self._queue:
             if w.deadline is not None and w.deadline < now:
@@ -613,8 +619,6 @@ class Conversation:
         """Storm and alarm-ignored (docs/protocol.md "Behaviour the vendor text states": host duty,
         latched alarm)."""
         k = self.knowledge
-        if k.storm_run < self.storm_limit and not self._unreset_alarm and not self._reset_in_storm:
-            return []  # the usual line: no duty applies, nothing changes
         out = []
         what = header or "this frame"
         good_reset = header == spec.RESET_HEADER and not error
@@ -636,10 +640,12 @@ class Conversation:
 
     def _judge_answer(self, line: _Line | None, header: str | None, frame: Frame | None,
                       found: list[Violation]) -> None:
-        self._storm(header, frame)
         if isinstance(frame, AlarmAnswer):
+            self._storm(header, frame)
             self._alarm(line, frame.code, found)
             return
+        if header is not None and header != spec.ALARM_HEADER and header != spec.RESET_HEADER:
+            self.knowledge.storm_run = 0  # any other answer ends the storm run (``_storm``)
         if header is None or frame is None or header == spec.ALARM_HEADER:
             if line is not None:
                 self._outcome_unknown(line)
@@ -654,8 +660,9 @@ class Conversation:
         if header == spec.RESET_HEADER and line.is_reset:
             self._reset_done(found)
             return
-        self._latch_on_normal_answer(line, found)
-        clean = self._pairing(line, header, frame, found) and not _is_error(found)
+        if self.knowledge.latched.value is not None:
+            self._latch_on_normal_answer(line, found)
+        clean = self._pairing(line, header, frame, found) and not (found and _is_error(found))
         if clean and line.frame is not None:
             self._learn(line.frame, frame, found)
         else:
@@ -797,18 +804,12 @@ class Conversation:
         if learn is not None:
             learn(self, c, a, found)
 
-    def _on_read_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
-        """0RP: the point read back (against what was written or read before)."""
-        self._read_point(a, found)  # type: ignore[arg-type]
 
     def _on_write_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WP: the point is what was written."""
         k = self.knowledge
         k.points[c.n] = Fact(PointData(c.v, c.a, c.o, c.pos), KNOWN)  # type: ignore[attr-defined]
 
-    def _on_read_current(self, c: Frame, a: Frame, found: list[Violation]) -> None:
-        """0RC: the position read back."""
-        self._read_current(a, found)  # type: ignore[arg-type]
 
     def _on_store_current(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WC: the point stored at the position (V, A, O learnt: silent item 4)."""
@@ -857,7 +858,8 @@ class Conversation:
         else:
             k.version = Fact(version, LEARNT)
 
-    def _read_point(self, a: ReadPointAnswer, found: list[Violation]) -> None:
+    def _on_read_point(self, c: Frame, a: ReadPointAnswer, found: list[Violation]) -> None:
+        """0RP: the point read back (against what was written or read before)."""
         k = self.knowledge
         seen = PointData(a.v, a.a, a.o, a.pos)
         fact = k.point(a.n)
@@ -866,7 +868,7 @@ class Conversation:
         elif fact.value is None:
             k.points[a.n] = Fact(seen, LEARNT)
 
-    def _read_current(self, a: ReadCurrentAnswer, found: list[Violation]) -> None:
+    def _on_read_current(self, c: Frame, a: ReadCurrentAnswer, found: list[Violation]) -> None:
         """0RC: before homing N, V, A 0 and Pos FFFFFF (stated); after a move, where the move went."""
         k = self.knowledge
         unknown = a.pos == spec.UNKNOWN_POSITION
@@ -934,7 +936,7 @@ _HOMED: Final = Fact(True, KNOWN)
 
 # The knowledge each command reads and writes on a clean exchange, one handler a header (``_learn``);
 # 0CM and 0%C change only the mode (and the latch, in ``_reset_done``).
-_LEARNERS: Final[dict[str, Callable[[Conversation, Frame, Frame, list[Violation]], None]]] = {
+_LEARNERS: Final[dict[str, Callable[..., None]]] = {
     ReadPoint.HEADER: Conversation._on_read_point,
     WritePoint.HEADER: Conversation._on_write_point,
     ReadCurrent.HEADER: Conversation._on_read_current,
