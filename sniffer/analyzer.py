@@ -28,7 +28,7 @@ from xac1_proto import FrameBytes, Framer, Junk, motion, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
-from .records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
+from .records import FrameRecord, JunkRecord, Record, Row, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
@@ -51,34 +51,41 @@ class Analyzer:
         self._device_since: float | None = None  # time of the oldest pending device byte
         self._device_last: float | None = None  # time of the latest device chunk
         self._closed = False
+        self._judged: list[tuple[Verdict, tuple[str, ...], str]] = []  # verdicts not yet counted
 
     # ---- input ----
 
     def feed(self, chunk: Chunk) -> list[Record]:
         """Bytes seen on one line; the records they complete (time passing to ``chunk.t`` first)."""
         out: list[Record] = []
-        self._step(chunk, out)
+        try:
+            self._step(chunk)
+        finally:
+            self._emit(out)
         return out
 
     def feed_many(self, chunks: Iterator[Chunk], out: list[Record] | None = None,
                   limit: int = FEED_BATCH) -> int:
         """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them or ``FEED_BYTES``, in one
-        loop: their records, the same and in the same order as ``feed`` gives, appended to ``out`` as they
-        are made (an exception, Ctrl-C included, loses none given so far); ``out`` None: no records are
-        made, the verdicts are counted (the summary). Returns the chunks taken: 0 at the end."""
+        loop: their records, the same and in the same order as ``feed`` gives, appended to ``out`` (an
+        exception, Ctrl-C included, loses none of the chunks taken); ``out`` None: no records are made,
+        the verdicts are counted (the summary). Returns the chunks taken: 0 at the end."""
         step = self._step
         taken = 0
         size = 0
-        for chunk in chunks:
-            step(chunk, out)
-            taken += 1
-            size += len(chunk.data)
-            if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
-                break
+        try:
+            for chunk in chunks:
+                step(chunk)
+                taken += 1
+                size += len(chunk.data)
+                if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
+                    break
+        finally:
+            self._emit(out)
         return taken
 
-    def _step(self, chunk: Chunk, out: list[Record] | None) -> None:
-        """One chunk: time passes to its time, its bytes are framed, each event judged and counted."""
+    def _step(self, chunk: Chunk) -> None:
+        """One chunk: time passes to its time, its bytes are framed, each event judged."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
         t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
@@ -86,7 +93,7 @@ class Analyzer:
         if framer is None:
             raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
         if t is not None:
-            self._tick(t, out)
+            self._tick(t)
         if error and data:
             self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
         if direction == DEVICE and data:
@@ -99,25 +106,27 @@ class Analyzer:
                 self._device_since = t  # else keep the older time: never expire too early
         else:
             events = framer.feed(data, t)
-        for event in events:
-            self._event(direction, event, out)
+        if events:
+            self._judge(direction, events)
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
         out: list[Record] = []
-        self._tick(now, out)
+        try:
+            self._tick(now)
+        finally:
+            self._emit(out)
         return out
 
-    def _tick(self, now: float, out: list[Record] | None) -> None:
+    def _tick(self, now: float) -> None:
         framer = self._framers[DEVICE]
         flush, last = self.device_idle_flush, self._device_last
         if flush is not None and last is not None and now - last >= flush and framer.pending:
             self._device_since = None
-            for event in framer.flush():
-                self._event(DEVICE, event, out)
+            self._judge(DEVICE, framer.flush())
         verdicts = self.conversation.tick(now, self._device_since)
         if verdicts:
-            self._take(verdicts, (), "", out)
+            self._judged += [(v, (), "") for v in verdicts]
 
     def close(self, now: float | None = None) -> list[Record]:
         """End of data: partial frames come out as junk; a command still waiting is ``no-answer`` when
@@ -125,13 +134,15 @@ class Analyzer:
         out: list[Record] = []
         if self._closed:
             return out
-        if now is not None:
-            self._tick(now, out)
-        for direction in (HOST, DEVICE):
-            for event in self._framers[direction].flush():
-                self._event(direction, event, out)
-        self._device_since = None
-        self._take(self.conversation.close(now), (), "", out)
+        try:
+            if now is not None:
+                self._tick(now)
+            for direction in (HOST, DEVICE):
+                self._judge(direction, self._framers[direction].flush())
+            self._device_since = None
+            self._judged += [(v, (), "") for v in self.conversation.close(now)]
+        finally:
+            self._emit(out)
         self.tally.unanswered += self.conversation.cut_short()
         self._closed = True
         return out
@@ -156,47 +167,49 @@ class Analyzer:
 
     # ---- events to the engine, verdicts to the tally and to records ----
 
-    def _event(self, direction: str, event: FrameBytes | Junk, out: list[Record] | None) -> None:
+    def _judge(self, direction: str, events: list[FrameBytes | Junk]) -> None:
+        """The engine's verdicts on one line's events, each kept with the line errors of its bytes and the
+        framer's reason (junk) until ``_emit``."""
         c = self.conversation
-        if type(event) is FrameBytes:
-            reason = ""
-            if direction == HOST:
-                verdicts = c.host_frame(event.raw, event.t_first, event.t_last)
+        judged = self._judged
+        flagged = self._errors[direction]
+        host = direction == HOST
+        for event in events:
+            if type(event) is FrameBytes:
+                reason = ""
+                verdicts = (c.host_frame if host else c.device_frame)(event.raw, event.t_first, event.t_last)
             else:
-                verdicts = c.device_frame(event.raw, event.t_first, event.t_last)
-        else:
-            reason = event.reason  # type: ignore[union-attr]
-            if direction == HOST:
-                verdicts = c.host_junk(event.raw, event.t_first, event.t_last)
-            else:  # a flushed partial line may be an answer
-                verdicts = c.device_junk(event.raw, event.t_first, event.t_last, reason == "flushed")
-        errors = self._line_errors(direction, event.offset, len(event.raw)) if self._errors[direction] else ()
-        self._take(verdicts, errors, reason, out)
+                reason = event.reason  # type: ignore[union-attr]
+                if host:
+                    verdicts = c.host_junk(event.raw, event.t_first, event.t_last)
+                else:  # a flushed partial line may be an answer
+                    verdicts = c.device_junk(event.raw, event.t_first, event.t_last, reason == "flushed")
+            errors = self._line_errors(direction, event.offset, len(event.raw)) if flagged else ()
+            for v in verdicts:
+                judged.append((v, errors, reason))
 
-    def _take(self, verdicts: list[Verdict], errors: tuple[str, ...], reason: str,
-              out: list[Record] | None) -> None:
-        """Count each verdict; make its record when ``out`` wants records."""
-        tally = self.tally
-        for v in verdicts:
-            kind = v.kind
-            if v.violations:
-                tally.violations(v.codes, v.sides)
-            if kind == "host-frame" or kind == "device-frame":
-                tally.frame(v.sender, len(v.raw), v.header, v.i, v.reply_to, v.latency_s)  # type: ignore[arg-type]
-                if errors:
-                    tally.line_errors += 1
-            elif kind != "no-answer":
-                tally.junk(v.sender, len(v.raw))
-                if errors:
-                    tally.line_errors += 1
-            if out is not None:
-                out.append(to_record(v, errors, reason))
+    def _emit(self, out: list[Record] | None) -> None:
+        """The verdicts judged since the last call: counted, and made records into ``out`` (None: none)."""
+        judged = self._judged
+        if not judged:
+            return
+        self._judged = []
+        self.tally.count([_row(v, errors) for v, errors, _ in judged])
+        if out is not None:
+            out += [to_record(v, errors, reason) for v, errors, reason in judged]
 
     def _line_errors(self, direction: str, offset: int, length: int) -> tuple[str, ...]:
         ranges = self._errors[direction]
         while ranges and ranges[0][1] <= offset:
             ranges.pop(0)
         return tuple(e for start, end, e in ranges if start < offset + length and end > offset)
+
+
+def _row(v: Verdict, line_errors: tuple[str, ...]) -> Row:
+    """What the tally counts of a verdict (``Tally.count``)."""
+    violations = v.violations
+    return (v.kind, v.sender, len(v.raw), v.header, v.i, v.reply_to, v.latency_s,
+            v.codes if violations else (), v.sides if violations else (), bool(line_errors))
 
 
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:

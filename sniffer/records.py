@@ -211,12 +211,16 @@ class LatencyStats:
         return {"n": self.n, "min": keys[0] / 1000, "median": round(mid / 1000, 3), "max": keys[-1] / 1000}
 
 
+# what ``Tally.count`` counts of a frame, junk run or missed answer (see there)
+Row = tuple[str, str, int, "str | None", "int | None", "int | None", "float | None", tuple[str, ...],
+            tuple[str, ...], bool]
+
+
 class Tally:
-    """Counts what goes by (records through ``add``; the analyzer counts its verdicts through ``frame``,
-    ``junk`` and ``violations`` without making records); ``summary()`` is the schema's last line."""
+    """Counts what goes by (records through ``add``; the analyzer's verdicts as rows through ``count``,
+    without records); ``summary()`` is the schema's last line."""
 
     def __init__(self) -> None:
-        self.frames: Counter[str] = Counter()  # by direction
         self.junk_runs = 0
         self.bytes: Counter[str] = Counter()  # by direction, frames and junk
         self.codes: Counter[str] = Counter()
@@ -230,49 +234,56 @@ class Tally:
 
     def add(self, record: Record) -> None:
         """Count one record."""
-        if record.violations:
-            self.violations(record.violations, sides_of(record))
-        if type(record) is FrameRecord:
-            self.line_errors += bool(record.line_errors)
-            self.frame(record.dir, len(record.raw), record.header, record.i, record.reply_to,
-                       record.latency_s)
-        elif type(record) is JunkRecord:
-            self.line_errors += bool(record.line_errors)
-            self.junk(record.dir, len(record.raw))
-
-    def violations(self, codes: tuple[str, ...], sides: tuple[str, ...]) -> None:
-        """Count the violation codes of one record, each with whose fault it is."""
-        self.codes.update(codes)
-        for code, side in zip(codes, sides, strict=True):
-            self.by_side[side][code] += 1
-
-    def junk(self, direction: str, size: int) -> None:
-        """Count a junk run of ``size`` bytes."""
-        self.junk_runs += 1
-        self.bytes[direction] += size
-
-    def frame(self, direction: str, size: int, header: str | None, i: int, reply_to: int | None,
-              latency_s: float | None) -> None:
-        """Count a frame of ``size`` bytes: a command by its header, an answer with its latency."""
-        self.frames[direction] += 1
-        self.bytes[direction] += size
-        if not header:
-            header = "?"
-        if direction == "host":
-            self.commands[header] += 1
-            headers = self._headers
-            headers[i] = header
-            if len(headers) > _MAX_WAITING:  # commands never answered: forget the oldest
-                del headers[next(iter(headers))]
+        codes = tuple(record.violations)
+        sides = sides_of(record) if codes else ()
+        if isinstance(record, TimeoutRecord):
+            self.count([("no-answer", record.dir, 0, record.header, None, record.command, None, codes, sides,
+                         False)])
             return
-        self.answers[header] += 1
-        if reply_to is not None:
-            command = self._headers.pop(reply_to, "?")
-            if latency_s is not None:
-                stats = self.latencies.get(command)
-                if stats is None:
-                    stats = self.latencies[command] = LatencyStats()
-                stats.add(latency_s)
+        frame = isinstance(record, FrameRecord)
+        kind, header = ("host-frame", record.header) if frame else ("host-junk", None)  # type: ignore[union-attr]
+        self.count([(kind, record.dir, len(record.raw), header, record.i, record.reply_to,
+                     record.latency_s, codes, sides, bool(record.line_errors))])
+
+    def count(self, rows: list[Row]) -> None:
+        """Count frames, junk runs and missed answers (``Row``: kind, sender, bytes, header, number, the
+        line answered, latency, violation codes and their sides, a line error on its bytes): commands by
+        header, answers by header with their latency by the command's header, violations by side."""
+        commands, answers, sizes, headers = self.commands, self.answers, self.bytes, self._headers
+        latencies = self.latencies
+        for kind, sender, size, header, i, reply_to, latency_s, codes, sides, line_error in rows:
+            if codes:
+                self.codes.update(codes)
+                for code, side in zip(codes, sides, strict=True):
+                    self.by_side[side][code] += 1
+            if kind == "no-answer":
+                continue
+            sizes[sender] += size
+            self.line_errors += line_error
+            if kind == "host-junk" or kind == "device-junk":
+                self.junk_runs += 1
+                continue
+            if not header:
+                header = "?"
+            if sender == "host":
+                commands[header] += 1
+                headers[i] = header  # type: ignore[index]
+                if len(headers) > _MAX_WAITING:  # commands never answered: forget the oldest
+                    del headers[next(iter(headers))]
+                continue
+            answers[header] += 1
+            if reply_to is not None:
+                command = headers.pop(reply_to, "?")
+                if latency_s is not None:
+                    stats = latencies.get(command)
+                    if stats is None:
+                        stats = latencies[command] = LatencyStats()
+                    stats.add(latency_s)
+
+    @property
+    def frames(self) -> dict[str, int]:
+        """Frames by direction."""
+        return {"host": sum(self.commands.values()), "device": sum(self.answers.values())}
 
     def latency_stats(self) -> dict[str, dict[str, float | int]]:
         """Per command header: count, min, median, max latency in ms."""

@@ -13,7 +13,6 @@ grammar itself stays defined once, in ``spec.py`` and ``grammar.py``.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
 from typing import Final
 
 from . import spec
@@ -21,28 +20,19 @@ from .frames import FRAME_CLASSES, Frame
 
 _DIGITS: Final = {16: b"[0-9A-F]", 10: b"[0-9]"}
 
-Check = Callable[[str], "int | str | None"]
+# a field's check: radix (0 for a text field, kept as its digits), lowest and highest value, and the
+# values allowed (the alarm codes the vendor lists with a meaning; None: any in range)
+Check = tuple[int, int, int, "frozenset[int] | None"]
+_LISTED_ALARMS: Final = frozenset(c for c, meaning in spec.ALARMS.items() if meaning is not None)
 
 
-def _converter(fs: spec.FrameSpec, name: str) -> Check:
-    """Text of one field -> its value, or None when it is out of range (the full path says why)."""
+def _check(fs: spec.FrameSpec, name: str) -> Check:
     field = spec.FIELDS[name]
     if field.text:
-        return lambda text: text
+        return 0, 0, 0, None
     lo, hi = fs.field_range(name)
-    radix = field.radix
-    if name == "code" and fs.header == spec.ALARM_HEADER:
-        listed = frozenset(c for c, meaning in spec.ALARMS.items() if meaning is not None)
-
-        def alarm(text: str) -> int | None:
-            value = int(text, radix)
-            return value if value in listed and lo <= value <= hi else None
-        return alarm
-
-    def number(text: str) -> int | None:
-        value = int(text, radix)
-        return value if lo <= value <= hi else None
-    return number
+    listed = _LISTED_ALARMS if name == "code" and fs.header == spec.ALARM_HEADER else None
+    return field.radix, lo, hi, listed
 
 
 def _pattern(fs: spec.FrameSpec) -> re.Pattern[bytes]:
@@ -61,7 +51,7 @@ _Entry = tuple[re.Pattern[bytes], type[Frame], tuple[str, ...], tuple[Check, ...
 _TABLE: Final[dict[tuple[bytes, str], _Entry]] = {
     (fs.header.encode("ascii"), fs.role): (
         _pattern(fs), FRAME_CLASSES[fs.key], fs.field_names,
-        tuple(_converter(fs, name) for name in fs.field_names),
+        tuple(_check(fs, name) for name in fs.field_names),
     )
     for fs in spec.FRAME_SPECS
 }
@@ -78,9 +68,12 @@ def decode_clean(data: bytes, role: str) -> Frame | None:
     if match is None:
         return None
     values: dict[str, int | str] = {}
-    for name, check, text in zip(names, checks, match.groups(), strict=True):
-        value = check(text.decode("ascii"))
-        if value is None:
-            return None
+    for name, (radix, lo, hi, listed), text in zip(names, checks, match.groups(), strict=True):
+        if not radix:
+            values[name] = text.decode("ascii")
+            continue
+        value = int(text, radix)
+        if value < lo or value > hi or (listed is not None and value not in listed):
+            return None  # out of range: the full path says why
         values[name] = value
     return cls.unchecked(**values)
