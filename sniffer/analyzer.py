@@ -58,10 +58,7 @@ class Analyzer:
     def feed(self, chunk: Chunk) -> list[Record]:
         """Bytes seen on one line; the records they complete (time passing to ``chunk.t`` first)."""
         out: list[Record] = []
-        try:
-            self._step(chunk)
-        finally:
-            self._emit(out)
+        self.feed_many(iter((chunk,)), out)
         return out
 
     def feed_many(self, chunks: Iterator[Chunk], out: list[Record] | None = None,
@@ -69,45 +66,46 @@ class Analyzer:
         """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them or ``FEED_BYTES``, in one
         loop: their records, the same and in the same order as ``feed`` gives, appended to ``out`` (an
         exception, Ctrl-C included, loses none of the chunks taken); ``out`` None: no records are made,
-        the verdicts are counted (the summary). Returns the chunks taken: 0 at the end."""
-        step = self._step
+        the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
+
+        Each chunk: time passes to its time (``_tick``), its bytes are framed by its line's framer (a
+        device line's partial frame keeps the time it began: an answer that starts in time is in time),
+        and its events are judged (``_judge``)."""
+        if self._closed:
+            raise RuntimeError("the analyzer is closed")
+        framers, errors_of, tick, judge = self._framers, self._errors, self._tick, self._judge
+        device = framers[DEVICE]
         taken = 0
         size = 0
         try:
             for chunk in chunks:
-                step(chunk)
+                t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
+                framer = framers.get(direction)
+                if framer is None:
+                    raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
                 taken += 1
-                size += len(chunk.data)
+                if t is not None:
+                    tick(t)
+                if error and data:
+                    errors_of[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
+                if framer is device and data:
+                    pending_before = framer.pending
+                    events = framer.feed(data, t)
+                    self._device_last = t
+                    if not framer.pending:
+                        self._device_since = None
+                    elif not pending_before:
+                        self._device_since = t  # else keep the older time: never expire too early
+                else:
+                    events = framer.feed(data, t)
+                if events:
+                    judge(direction, events)
+                size += len(data)
                 if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                     break
         finally:
             self._emit(out)
         return taken
-
-    def _step(self, chunk: Chunk) -> None:
-        """One chunk: time passes to its time, its bytes are framed, each event judged."""
-        if self._closed:
-            raise RuntimeError("the analyzer is closed")
-        t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
-        framer = self._framers.get(direction)
-        if framer is None:
-            raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
-        if t is not None:
-            self._tick(t)
-        if error and data:
-            self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
-        if direction == DEVICE and data:
-            pending_before = framer.pending
-            events = framer.feed(data, t)
-            self._device_last = t
-            if not framer.pending:
-                self._device_since = None
-            elif not pending_before:
-                self._device_since = t  # else keep the older time: never expire too early
-        else:
-            events = framer.feed(data, t)
-        if events:
-            self._judge(direction, events)
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""

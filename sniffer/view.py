@@ -132,6 +132,22 @@ def _json_line(record: Record) -> str:
 
 
 _HEADER_JSON = {h: _ENCODE(h) for role in spec.ROLES for h in spec.HEADERS[role]}
+# frame class -> its fields as a JSON object with %d for each value (every field a number), or None
+_FIELDS_FORMAT: dict[type, str | None] = {}
+
+
+def _fields_json(frame: Any) -> str:
+    """``json.dumps(frame_fields(frame))``: a frame whose fields are all ints through its class's format."""
+    fields = frame_fields(frame)
+    cls = type(frame)
+    shape = _FIELDS_FORMAT.get(cls, "")
+    if shape == "":
+        shape = _FIELDS_FORMAT[cls] = "{" + ",".join(f'"{name}":%d' for name in fields) + "}" \
+            if all(spec.FIELDS[name].radix and not spec.FIELDS[name].text for name in fields) else None
+    values = tuple(fields.values())
+    if shape is None or set(map(type, values)) - {int}:
+        return _ENCODE(fields)
+    return shape % values
 _DIR_JSON = {"host": '"host"', "device": '"device"'}
 
 
@@ -145,7 +161,7 @@ def _frame_json(record: FrameRecord) -> str:
             or shown_dir is None):
         return _json_line(record)
     shown_header = "null" if header is None else _HEADER_JSON.get(header) or _ENCODE(header)
-    fields = "null" if frame is None else _ENCODE(frame_fields(frame))
+    fields = "null" if frame is None else _fields_json(frame)
     head = (f'{{"type":"frame","i":{i},"t":{_json_t(t)},"dir":{shown_dir},"raw":"{raw.hex()}",'
             f'"header":{shown_header},"fields":{fields},"violations":[],"sides":[]')
     if direction == "host":

@@ -153,8 +153,10 @@ class Knowledge:
     stop_cleared: Fact[int] = field(default_factory=Fact)
 
     def point(self, n: int) -> Fact[PointData]:
-        return self.points.get(n, Fact())
+        return self.points.get(n, _NOTHING_KNOWN)
 
+
+_NOTHING_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
 
 VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer"]
 
