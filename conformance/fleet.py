@@ -419,9 +419,19 @@ def fleet_table(devices: Sequence[Device]) -> Any:
     style = {CONFORMS: "green", NOT_CONFORM: "red bold", NOT_TESTED: "red bold", INCOMPLETE: "yellow",
              INTERRUPTED: "yellow"}
     for d in devices:
-        t.add_row(d.target.url, d.unit or "-", d.firmware or "-", f"[{style[d.verdict]}]{d.verdict}[/]",
-                  _failed_text(d), _seconds(d.elapsed(d.t_end or 0.0)))
+        t.add_row(d.target.url, d.unit or "-", d.firmware or "-",
+                  f"[{style[d.verdict]}]{d.verdict}[/]{_restore_text(d)}", _failed_text(d),
+                  _seconds(d.elapsed(d.t_end or 0.0)))
     return t
+
+
+def _restore_text(d: Device) -> str:
+    """The verdict cell's word that the device was left as the run left it (the child's safety lines)."""
+    if any(line.startswith("safety PROBLEM") for line in d.safety):
+        return " [red bold](RESTORE FAILED)[/]"
+    if d.safety:
+        return " [red bold](NOT RESTORED)[/]"
+    return ""
 
 
 def summary_line(devices: Sequence[Device], status: int) -> str:

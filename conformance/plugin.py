@@ -365,7 +365,7 @@ def xac1_settings(request: pytest.FixtureRequest) -> Any:
 def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
     """The device under test, opened once; points and OUT ports snapshotted before any write and
     restored when the session ends."""
-    from .dut import DeviceAbort, DeviceUnderTest, NoAnswer, StoppedAnswering
+    from .dut import DeviceAbort, DeviceUnderTest, NoAnswer, PortLost, StoppedAnswering
     from .safety import take_snapshot
 
     run = _run(request.config)
@@ -378,8 +378,8 @@ def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
     dut.test = "(session start: snapshot)"
     try:
         run.snapshot = take_snapshot(dut)
-    except (NoAnswer, StoppedAnswering):
-        raise
+    except (NoAnswer, StoppedAnswering, PortLost):
+        raise  # the device or its port failed: THE DEVICE STOPPED ANSWERING, whatever the moment
     except DeviceAbort as exc:
         raise DeviceAbort(f"cannot take the safety snapshot: {exc}; nothing was written") from None
     yield dut

@@ -85,6 +85,8 @@ class Report:
     not_run_topics: list[str] = field(default_factory=list)  # the group of each stated-rule check not run
     latencies: dict[str, list[float]] = field(default_factory=dict)  # command header -> turnarounds (s)
     timeout: float | None = None  # the run's answer timeout (s): the deadline drawn on the histogram
+    restore_failed: list[str] = field(default_factory=list)  # what the restore wrote back but reads wrong
+    restore_unverified: list[str] = field(default_factory=list)  # what the run changed, not restored
 
     # ---- what the checks say ----
 
@@ -181,11 +183,17 @@ class Report:
                     f"interrupted by {self.interrupted})") if head == "INCOMPLETE" else line + \
                 f" (the run was interrupted by {self.interrupted})"
         elif head == "THE DEVICE STOPPED ANSWERING":
-            line = f"{head}: the run did not complete ({counts})"
+            when = "the run did not complete" if self.abort else "during the restore, after the checks"
+            line = f"{head}: {when} ({counts})"
         elif head == "COULD NOT GO ON":
             line += "; the run stopped early (see why above)"
+        if self.safety_problems:
+            what = ", ".join(self.restore_failed) or self.safety_problems[0]
+            line += f"; THE RESTORE FAILED ({what}; see the safety section)"
         if self.safety_unverified:
-            line += "; THE DEVICE COULD NOT BE RESTORED (see the safety section)"
+            what = ", ".join(self.restore_unverified)
+            line += (f"; THE DEVICE COULD NOT BE RESTORED (not verified: {what}; see the safety section)"
+                     if what else "; THE DEVICE COULD NOT BE RESTORED (see the safety section)")
         return line
 
     def exit_status(self, allow_incomplete: bool = False) -> int:
@@ -256,6 +264,7 @@ def build(run: Any) -> Report:
     info_skipped = [r for r in run.results if r.info and r.verdict == SKIP]
     run_checks = run.total - run.total_info
     safety, problems, warnings, unverified = _safety(run)
+    rr = run.restore_report
     judged = {r.nodeid for r in run.results}
     cut = "interrupted: the run stopped during this check"
     not_run_checks = [(name + (" (information)" if info else ""),
@@ -271,14 +280,16 @@ def build(run: Any) -> Report:
         timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
         abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
         not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
-        stopped=run.stopped, safety_unverified=unverified, not_run_checks=not_run_checks,
+        stopped=run.stopped or bool(unverified), safety_unverified=unverified, not_run_checks=not_run_checks,
         interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
         command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seed=s.seed, kit_version=__version__, junit=list(run.results),
         not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected
                         if nodeid not in judged and not info],
         latencies={h: list(v) for h, v in dut.latencies.items() if v} if dut is not None else {},
-        timeout=s.timeout)
+        timeout=s.timeout,
+        restore_failed=list(rr.failed_items) if rr is not None else [],
+        restore_unverified=list(rr.unverified_items) if rr is not None else [])
 
 
 def _topic(nodeid: str) -> str:

@@ -90,6 +90,8 @@ class RestoreReport:
     warnings: list[str] = field(default_factory=list)  # changes the protocol cannot undo
     problems: list[str] = field(default_factory=list)  # a restore that failed
     unverified: list[str] = field(default_factory=list)  # no answer: not restored, not checked
+    failed_items: list[str] = field(default_factory=list)  # what ``problems`` name ("point 3", ...)
+    unverified_items: list[str] = field(default_factory=list)  # what ``unverified`` names
 
     @property
     def ok(self) -> bool:
@@ -178,6 +180,7 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
                 out.lines.append(f"point {n:X} restored to {before.show()}")
             else:
                 out.problems.append(f"point {n:X}: wrote back {before.show()} but it reads {after.show()}")
+                out.failed_items.append(f"point {n:X}")
         out.lines.append(f"{len(POINTS) - changed} of {len(POINTS)} points unchanged by the run")
         now_o = _read_outputs(dut)
         if now_o != snap.outputs:
@@ -187,23 +190,29 @@ def restore(dut: DeviceUnderTest, snap: Snapshot) -> RestoreReport:
                 out.lines.append(f"OUT ports restored to {snap.outputs}")
             else:
                 out.problems.append(f"OUT ports: wrote back {snap.outputs} but they read {after_o}")
+                out.failed_items.append("the OUT ports")
         else:
             out.lines.append(f"OUT ports unchanged ({snap.outputs})")
         _restore_position(dut, snap, out)
         _mode(dut, out)
     except (StoppedAnswering, PortLost) as exc:
         out.unverified.append(f"the restore could not be done or verified: {exc}")
-        out.unverified += _changes_sent(dut, snap)
+        changes = _changes_sent(dut, snap)
+        out.unverified += [line for line, _ in changes]
+        out.unverified_items += [item for _, item in changes if item]
     except DeviceAbort as exc:
         out.problems.append(f"restore stopped: {exc}")
+        out.failed_items.append("the rest of the restore (stopped)")
     except Exception as exc:  # noqa: BLE001 - the report must say what happened, whatever it was
         out.problems.append(f"restore stopped: {type(exc).__name__}: {exc}")
+        out.failed_items.append("the rest of the restore (stopped)")
     return out
 
 
-def _changes_sent(dut: DeviceUnderTest, snap: Snapshot) -> list[str]:
+def _changes_sent(dut: DeviceUnderTest, snap: Snapshot) -> list[tuple[str, str]]:
     """What the run sent that may have changed the device (answered or not), with the values it had at
-    the start: what to check by hand when the restore could not be done."""
+    the start: what to check by hand when the restore could not be done; each line with what it names
+    ("" when nothing)."""
     points: set[int] = set()
     outputs = moved = mode = False
     for p in dut.log:
@@ -215,16 +224,17 @@ def _changes_sent(dut: DeviceUnderTest, snap: Snapshot) -> list[str]:
         outputs = outputs or isinstance(command, WriteOutputs)
         moved = moved or isinstance(command, (MovePoint, MoveDirect))
         mode = mode or isinstance(command, SwitchMode)
-    out = [f"not verified: point {n:X}, written during the run; it held {snap.points[n].show()} before"
-           for n in sorted(points)]
+    out = [(f"not verified: point {n:X}, written during the run; it held {snap.points[n].show()} before",
+            f"point {n:X}") for n in sorted(points)]
     if outputs:
-        out.append(f"not verified: the OUT ports, written during the run; they were {snap.outputs} before")
+        out.append((f"not verified: the OUT ports, written during the run; they were {snap.outputs} before",
+                    "the OUT ports"))
     if moved:
-        out.append(f"not verified: the axis position, moved during the run; 0RC read {snap.position_seen} "
-                   f"before")
+        out.append((f"not verified: the axis position, moved during the run; 0RC read {snap.position_seen} "
+                    f"before", "the axis position"))
     if mode:
-        out.append("not verified: the mode, switched during the run (0CM)")
-    return out or ["the run sent nothing that changes the device (no write, no move)"]
+        out.append(("not verified: the mode, switched during the run (0CM)", "the mode"))
+    return out or [("the run sent nothing that changes the device (no write, no move)", "")]
 
 
 def _position_now(dut: DeviceUnderTest) -> int | None:
@@ -266,6 +276,7 @@ def _restore_position(dut: DeviceUnderTest, snap: Snapshot, out: RestoreReport) 
     else:
         seen = "unknown" if after is None else f"0x{after:06X}"
         out.problems.append(f"axis position: moved back to 0x{start:06X} ({m.show()}) but 0RC reads {seen}")
+        out.failed_items.append("the axis position")
 
 
 def _mode(dut: DeviceUnderTest, out: RestoreReport) -> None:
@@ -279,3 +290,4 @@ def _mode(dut: DeviceUnderTest, out: RestoreReport) -> None:
                          f"({dut.settings.flag('restore-mode0')})")
     else:
         out.problems.append(f"0CM0 (to set mode 0 as asked) got {describe_answer(p)}")
+        out.failed_items.append("mode 0")

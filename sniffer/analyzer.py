@@ -28,7 +28,7 @@ from xac1_proto import FrameBytes, Framer, Junk, motion, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
-from .records import FrameRecord, JunkRecord, Record, Row, Tally, TimeoutRecord
+from .records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, Row, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
@@ -136,7 +136,12 @@ class Analyzer:
             if now is not None:
                 self._tick(now)
             for direction in (HOST, DEVICE):
-                self._judge(direction, self._framers[direction].flush())
+                events = self._framers[direction].flush()
+                if events and _inside_frame(events[-1]):  # the data ended inside this frame (issue 23)
+                    self._judge(direction, events[:-1])
+                    self._judge_cut(direction, events[-1])
+                else:
+                    self._judge(direction, events)
             self._device_since = None
             self._judged += [(v, (), "") for v in self.conversation.close(now)]
         finally:
@@ -196,6 +201,12 @@ class Analyzer:
         if out is not None:
             out += [to_record(v, errors, reason) for v, errors, reason in judged]
 
+    def _judge_cut(self, direction: Direction, event: FrameBytes | Junk) -> None:
+        """The data ended inside this frame: the engine's verdict that says so (no violation)."""
+        verdicts = self.conversation.ended_inside_frame(direction, event.raw, event.t_first, event.t_last)
+        errors = self._line_errors(direction, event.offset, len(event.raw)) if self._errors[direction] else ()
+        self._judged += [(v, errors, "") for v in verdicts]
+
     def _line_errors(self, direction: str, offset: int, length: int) -> tuple[str, ...]:
         ranges = self._errors[direction]
         while ranges and ranges[0][1] <= offset:
@@ -208,6 +219,13 @@ def _row(v: Verdict, line_errors: tuple[str, ...]) -> Row:
     violations = v.violations
     return (v.kind, v.sender, len(v.raw), v.header, v.i, v.reply_to, v.latency_s,
             v.codes if violations else (), v.sides if violations else (), bool(line_errors))
+
+
+def _inside_frame(event: FrameBytes | Junk) -> bool:
+    """Is ``event`` (the last one flushed at the end of the data) a frame the data ended inside: a frame
+    start with no LF yet, short of the longest line a frame may reach?"""
+    return (isinstance(event, Junk) and event.reason in ("flushed", "no-frame-start")
+            and event.raw[:1] in (spec.LEAD, spec.LETTER_O) and spec.LF not in event.raw)
 
 
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
@@ -228,6 +246,9 @@ def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -
                              details=details, sides=sides)
     assert v.i is not None
     direction: Direction = v.sender
+    if kind == "cut":
+        return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=CAPTURE_ENDED, violations=(),
+                          line_errors=line_errors, reply_to=v.reply_to, latency_s=None)
     return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=reason or "flushed",
                       violations=codes, details=details, line_errors=line_errors, sides=sides,
                       reply_to=v.reply_to, latency_s=v.latency_s)

@@ -98,9 +98,14 @@ class FrameRecord(NamedTuple):
         return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
+CAPTURE_ENDED = "capture-ended"  # JunkRecord.reason: the data ended inside this frame (no violation)
+
+
 class JunkRecord(NamedTuple):
-    """Bytes that form no frame (always the ``garbage`` violation). ``reason`` is the framer's:
-    ``no-frame-start``, ``truncated``, ``overflow``, ``flushed``."""
+    """Bytes that form no frame (the ``garbage`` violation). ``reason`` is the framer's:
+    ``no-frame-start``, ``truncated``, ``overflow``, ``flushed``; or ``capture-ended``: the data (a capture
+    file, a proxy stopped) ended inside this frame, which is no one's fault: no violation, and on device
+    bytes ``reply_to`` names the command whose answer was cut."""
 
     i: int
     t: float | None
@@ -253,13 +258,16 @@ class Tally:
             self.count([("no-answer", record.dir, 0, record.header, None, record.command, None, codes, sides,
                          False)])
             return
-        frame = isinstance(record, FrameRecord)
-        kind, header = ("host-frame", record.header) if frame else ("host-junk", None)  # type: ignore[union-attr]
+        if isinstance(record, FrameRecord):
+            kind, header = "host-frame", record.header
+        else:
+            kind, header = ("cut" if record.reason == CAPTURE_ENDED else "host-junk"), None
         self.count([(kind, record.dir, len(record.raw), header, record.i, record.reply_to,
                      record.latency_s, codes, sides, bool(record.line_errors))])
 
     def count(self, rows: list[Row]) -> None:
-        """Count frames, junk runs and missed answers (``Row``: kind, sender, bytes, header, number, the
+        """Count frames, junk runs, frames the data ended inside and missed answers (``Row``: kind (a
+        ``Verdict.kind``), sender, bytes, header, number, the
         line answered, latency, violation codes and their sides, a line error on its bytes): commands by
         header, answers by header with their latency by the command's header, violations by side."""
         commands, answers, sizes, headers = self.commands, self.answers, self.bytes, self._headers
@@ -275,6 +283,8 @@ class Tally:
             self.line_errors += line_error
             if kind == "host-junk" or kind == "device-junk":
                 self.junk_runs += 1
+                continue
+            if kind == "cut":  # the data ended inside this frame: its bytes, no junk run
                 continue
             if not header:
                 header = "?"

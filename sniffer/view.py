@@ -27,7 +27,16 @@ from rich.text import Text
 
 from xac1_proto import spec
 
-from .records import FrameRecord, JunkRecord, Record, TimeoutRecord, frame_fields, sides_of, summary_json
+from .records import (
+    CAPTURE_ENDED,
+    FrameRecord,
+    JunkRecord,
+    Record,
+    TimeoutRecord,
+    frame_fields,
+    sides_of,
+    summary_json,
+)
 
 FORMATS = ("text", "jsonl")
 _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
@@ -349,6 +358,9 @@ def _body(record: FrameRecord | JunkRecord) -> list[Part]:
     arrow = "→" if record.dir == "host" else "←"
     colour = "cyan" if record.dir == "host" else "green"
     shown: Part = (f"{record.dir:<6} {arrow} {show_raw(record.raw):<22}", colour)
+    if isinstance(record, JunkRecord) and record.reason == CAPTURE_ENDED:
+        cut = "" if record.reply_to is None else f", the answer to #{record.reply_to}"
+        return [shown, (" ", ""), (f"cut: the capture ended inside this frame{cut} (no violation)", "yellow")]
     if isinstance(record, JunkRecord):
         return [shown, (" ", ""), (f"junk ({record.reason})", "red")]
     if record.frame is None:

@@ -144,3 +144,19 @@ def test_after_the_stop_a_new_alarm_is_no_latch_broken():
     for k, (cmd, ans) in enumerate([(b"0RV\r\n", b"0%%0E\r\n"), (b"0MP5\r\n", b"0%%08\r\n")]):
         out += c.host_frame(cmd, k * 0.1, k * 0.1) + c.device_frame(ans, k * 0.1 + 0.002, k * 0.1 + 0.002)
     assert [side for v in out for side in v.sides if side == "device"] == []
+
+
+def test_a_reset_that_meets_the_stop_first_still_clears_the_other_alarm():
+    """Alarm 09 latched; the stop pressed unseen; 0%C answered 0%%0E has cleared 09 (vendor §6): 09
+    coming back to 0RV after the release is latch-broken, and the clean simulator's normal answer is not."""
+    def run(last: bytes) -> list[str]:
+        c = Conversation()
+        out = []
+        script = [(b"0RV\r\n", b"0%%09\r\n"), (b"0%C\r\n", b"0%%0E\r\n"), (b"0RV\r\n", last)]
+        for k, (cmd, ans) in enumerate(script):
+            t = k * 0.1
+            out += c.host_frame(cmd, t, t) + c.device_frame(ans, t + 0.002, t + 0.002)
+        return [code for v in out for code, side in zip(v.codes, v.sides, strict=True) if side == "device"]
+
+    assert run(b"0%%09\r\n") == ["latch-broken"]
+    assert run(b"0RV100\r\n") == []

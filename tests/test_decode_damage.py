@@ -28,7 +28,9 @@ BINARY = (".pcap", ".pcapng", ".bin")
 # a change that keeps the layout valid is data, not damage: a byte of a raw file or a character of
 # socat -v text (which prints bytes as themselves) can be changed into any other byte unseen
 UNDETECTABLE = {("raw-host.bin", "flip"), ("raw-host.bin", "insert"), ("raw-host.bin", "delete"),
-                ("socat-v.log", "flip")}
+                ("socat-v.log", "flip"),
+                # cut between two hex bytes: just how jpnevulator --ascii leaves a file at Ctrl-C
+                ("jpnevulator-ascii.txt", "cut-line")}
 _TOKEN = re.compile(rb"(?<![0-9A-Fa-f])[0-9A-Fa-f]{2}(?![0-9A-Fa-f])")
 
 

@@ -115,6 +115,9 @@ def _reference_to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: 
         return TimeoutRecord(command=v.reply_to, t=v.t, header=v.header, waited_s=v.waited_s,
                              details=details, sides=v.sides)
     assert v.i is not None
+    if v.kind == "cut":  # issue 23 item 7: the data ended inside a frame, no violation
+        return JunkRecord(i=v.i, t=v.t, dir=v.sender, raw=v.raw, reason=records_mod.CAPTURE_ENDED,
+                          violations=(), line_errors=line_errors, reply_to=v.reply_to)
     if v.kind in ("host-junk", "device-junk"):
         return JunkRecord(i=v.i, t=v.t, dir=v.sender, raw=v.raw, reason=reason or "flushed",
                           violations=v.codes, details=details, line_errors=line_errors, sides=v.sides,
@@ -152,7 +155,7 @@ def _reference_tally_add(self: records_mod.Tally, record: Record) -> None:
             if record.reply_to is not None and record.latency_s is not None:
                 self.latencies.setdefault(command, records_mod.LatencyStats()).add(record.latency_s)
     elif isinstance(record, JunkRecord):
-        self.junk_runs += 1
+        self.junk_runs += record.reason != records_mod.CAPTURE_ENDED
         self.bytes[record.dir] += len(record.raw)
         self.line_errors += bool(record.line_errors)
 
@@ -185,6 +188,9 @@ def _reference_line(record: Record) -> str:
     raw = escape(f"{_reference_show_raw(record.raw):<22}")
     raw += "\\" * (len(raw) - len(raw.rstrip("\\")))  # fix 3: see _reference_text_write
     head = f"{when} #{record.i:<4} [{colour}]{record.dir:<6} {arrow} {raw}[/]"
+    if isinstance(record, JunkRecord) and record.reason == records_mod.CAPTURE_ENDED:
+        cut = "" if record.reply_to is None else f", the answer to #{record.reply_to}"
+        return f"{head} [yellow]cut: the capture ended inside this frame{cut} (no violation)[/]"
     if isinstance(record, JunkRecord):
         return f"{head} [red]junk ({record.reason})[/]"
     decoded = "?" if record.frame is None else str(record.frame)

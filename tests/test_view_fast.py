@@ -33,7 +33,7 @@ from test_decode_equivalence import chunks_of, cuts, events, gaps, line_error_at
 
 from sniffer import view as view_mod
 from sniffer.analyzer import Analyzer
-from sniffer.records import FrameRecord, JunkRecord, Record, TimeoutRecord
+from sniffer.records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, TimeoutRecord
 from sniffer.view import BATCH_LINES, JsonlView, TextView, violation_parts
 from xac1_proto import frames as fr
 from xac1_proto import spec
@@ -203,7 +203,8 @@ def record_streams(draw: Any) -> list[Record]:
     for at, t, reply_to, latency in draw(st.lists(st.tuples(st.integers(0, 30), times, replies, latencies),
                                                   max_size=3)):
         records.insert(at, JunkRecord(i=at, t=t, dir=draw(st.sampled_from(["host", "device"])),
-                                      raw=draw(st.binary(max_size=8)), reason="truncated",
+                                      raw=draw(st.binary(max_size=8)),
+                                      reason=draw(st.sampled_from(["truncated", CAPTURE_ENDED])),
                                       details=("x (garbage)",), reply_to=reply_to, latency_s=latency))
     for at, t, waited in draw(st.lists(st.tuples(st.integers(0, 30), times, latencies), max_size=2)):
         records.insert(at, TimeoutRecord(command=at, t=t, header=draw(st.sampled_from([None, "0RV"])),

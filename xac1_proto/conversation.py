@@ -158,7 +158,7 @@ class Knowledge:
 
 _NOTHING_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
 
-VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer"]
+VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer", "cut"]
 
 
 class Verdict(NamedTuple):
@@ -307,6 +307,8 @@ class Conversation:
         self._next_i = 0
         self._last_t: float | None = None
         self._answer_since: float | None = None  # an answer began at this time and is still arriving
+        self._cut: _Line | None = None  # the line whose answer the end of the data cut
+        self._cut_since: float | None = None  # when that cut answer began
 
     # ---- what callers ask ----
 
@@ -469,16 +471,33 @@ class Conversation:
         self._answer_since = answer_since
         return self._expire(now) if self._queue else []
 
+    def ended_inside_frame(self, sender: spec.Side, raw: bytes, t_first: float | None = None,
+                           t_last: float | None = None) -> list[Verdict]:
+        """The data ended inside a frame of ``sender`` (a capture file or a proxy stopped mid-line): the
+        recording ended, not the sender, so no violation. Device bytes that began inside the head line's
+        answer window are its answer, cut: that line is cut short at ``close()``, never ``no-answer``."""
+        out = self._time(t_first, answer=sender == DEVICE)
+        i = self._number()
+        head = self._queue[0] if self._queue else None
+        reply_to = None
+        if sender == DEVICE and head is not None and head.kind != _DISCARD and (
+                t_first is None or head.deadline is None or t_first <= head.deadline):
+            self._cut, self._cut_since, reply_to = head, t_first, head.i
+        out.append(Verdict("cut", sender, i, bytes(raw), reply_to=reply_to, t=t_first, t_last=t_last))
+        return out
+
     def close(self, now: float | None = None) -> list[Verdict]:
         """End of the data: windows closed by ``now`` (default: the last time seen) give ``no-answer``;
-        without time, every line still owed an answer does. Returns also the lines cut short (``waiting``
-        afterwards tells none is left)."""
-        self._answer_since = None
+        without time, every line still owed an answer does, but one whose answer the end cut
+        (``ended_inside_frame``). Returns also the lines cut short (``waiting`` afterwards tells none is
+        left)."""
+        self._answer_since = self._cut_since if self._cut is not None else None
         end = now if now is not None else self._last_t
         out = self._expire(end) if end is not None else []
+        self._answer_since = None
         keep: deque[_Line] = deque()
         for w in self._queue:
-            if w.deadline is None and w.owed:
+            if w.deadline is None and w.owed and w is not self._cut:
                 out.append(self._no_answer(w, None))
             elif w.owed:
                 keep.append(w)
@@ -697,10 +716,10 @@ class Conversation:
                 and not released:
             found.append(_v("latch-broken", f"alarm {latched:02X} is latched, but the answer is alarm "
                             f"{code:02X}: a latched alarm is repeated until a reset"))
+        if code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
+            self._stop_over(k.latched)
         if line is not None and line.is_reset and code == spec.ALARM_ESTOP:
             k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
-        elif code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
-            self._stop_over(k.latched)
         elif code != spec.ALARM_ESTOP and released:  # the stop was released unseen: held or new alarm
             k.under_stop, k.stop_cleared = Fact(), Fact()
         if code != spec.ALARM_NONE:

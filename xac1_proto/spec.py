@@ -92,7 +92,7 @@ class FrameSpec:
     layout: tuple[Item, ...]
     meaning: str
     ranges: dict[str, tuple[int, int]] = field(default_factory=dict)
-    echo: bool = False  # the answer repeats the command byte for byte
+    echo: bool = False  # the answer repeats the command: the same header and field values
 
     @property
     def key(self) -> tuple[str, Role]:

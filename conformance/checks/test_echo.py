@@ -1,4 +1,6 @@
-"""Echo answers: 0WP, 0MV, 0WS and 0CM answer with their command byte for byte; 0%C answers 0%C00."""
+"""Echo answers: 0WP, 0MV, 0WS and 0CM answer with their command, field for field (the same header and
+field values, as the rulebook judges an echo; framing flaws are the framing checks' to judge); 0%C
+answers 0%C00."""
 
 from __future__ import annotations
 
@@ -31,19 +33,19 @@ def _named(frame):
 
 @pytest.mark.parametrize("v,a,o", [(1, 3, 0), (9, 1, 3)], ids=["V1A3O0", "V9A1O3"])
 def test_write_point_echo(xac1_dut, xac1_kit, v, a, o):
-    """0WP ({id}) answers with the command, byte for byte (docs/protocol.md "Frames", 0WP)."""
+    """0WP ({id}) answers with the command, field for field (docs/protocol.md "Frames", 0WP)."""
     p = xac1_dut.send(WritePoint(n=xac1_kit.point(1), v=v, a=a, o=o, pos=xac1_kit.safe_pos(1)))
     _echoed(p, "0WP")
 
 
 @pytest.mark.parametrize("o", [0, 1, 2, 3])
 def test_write_outputs_echo(xac1_dut, o):
-    """0WS with O={id} answers with the command, byte for byte (docs/protocol.md "Frames", 0WS)."""
+    """0WS with O={id} answers with the command, field for field (docs/protocol.md "Frames", 0WS)."""
     _echoed(xac1_dut.send(WriteOutputs(o=o)), "0WS")
 
 
 def test_switch_mode_echo(xac1_dut):
-    """0CM0 and 0CM1 answer with the command, byte for byte (docs/protocol.md "Frames", 0CM)."""
+    """0CM0 and 0CM1 answer with the command, field for field (docs/protocol.md "Frames", 0CM)."""
     p0 = xac1_dut.send(SwitchMode(mode=0))
     p1 = xac1_dut.send(SwitchMode(mode=1))  # back to communication mode at once
     _echoed(p0, "0CM0")
@@ -52,7 +54,7 @@ def test_switch_mode_echo(xac1_dut):
 
 @pytest.mark.xac1_motion
 def test_direct_move_echo(xac1_dut, xac1_kit):
-    """0MV answers with the command, byte for byte, once the move has ended
+    """0MV answers with the command, field for field, once the move has ended
     (docs/protocol.md "Frames", 0MV)."""
     xac1_kit.require_homed()
     p = xac1_dut.send(xac1_kit.command("0MV"))

@@ -17,10 +17,14 @@ def test_rc_before_homing(xac1_dut):
     p = xac1_dut.current_position()
     expect(isinstance(p.frame, ReadCurrentAnswer), f"0RC got {describe_answer(p)}", p)
     f = p.frame
+    hint = ""
+    if f.pos != spec.UNKNOWN_POSITION:  # a position: most likely homed since power-on, not a wrong answer
+        hint = (f"; 0RC answers a position, so the unit has most likely been homed since it was powered on: "
+                f"power-cycle the unit and run again, or drop {xac1_dut.settings.flag('fresh')}")
     expect((f.n, f.v, f.a, f.pos) == (0, 0, 0, spec.UNKNOWN_POSITION),
            f"0RC before homing: expected N=0 V=0 A=0 Pos=FFFFFF, received {describe_answer(p)}; "
            + differences({"N": "0", "V": "0", "A": "0", "Pos": "FFFFFF"},
-                         {"N": f"{f.n:X}", "V": str(f.v), "A": str(f.a), "Pos": f"{f.pos:06X}"}), p)
+                         {"N": f"{f.n:X}", "V": str(f.v), "A": str(f.a), "Pos": f"{f.pos:06X}"}) + hint, p)
     xac1_dut.info("0RC O before homing", "silent item 8", f"O={f.o} (the current OUT ports)", p)
 
 

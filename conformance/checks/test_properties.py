@@ -8,7 +8,9 @@ position and version, latched alarms, the reset, errors answered with an alarm a
 sequences is bounded (``--xac1-examples``) and reproducible from the seed (``--xac1-seed``, default 0).
 A sequence never puts more than four communication-error answers in a row (the vendor's host duty).
 Shrinking is off: on a real device a replay starts from another state, so the first failing sequence
-is the one reported.
+is the one reported. A device or port that fails during a sequence (``DeviceAbort``) is no failing
+example: it leaves hypothesis at once (``DeviceGone``, which hypothesis does not catch, so it never
+replays the sequence on a dead port) and ends the run as any check's would.
 """
 
 from __future__ import annotations
@@ -44,6 +46,15 @@ from xac1_proto.frames import (
 
 pytestmark = pytest.mark.xac1_last
 MAX_ALARMS_IN_ROW = spec.STORM_LIMIT - 1
+
+
+class DeviceGone(BaseException):
+    """Carries a ``DeviceAbort`` out of hypothesis (which takes every ``Exception`` for a failing example
+    and replays it) to the check, which raises the abort itself."""
+
+    def __init__(self, abort: DeviceAbort) -> None:
+        super().__init__(str(abort))
+        self.abort = abort
 
 
 class Sequences(RuleBasedStateMachine):
@@ -116,7 +127,14 @@ class Sequences(RuleBasedStateMachine):
             raise failure
 
     def send(self, command: Frame) -> None:
-        self.judge(self.dut.send(command))
+        self.judge(self._ask(self.dut.send, command))
+
+    def _ask(self, ask: Any, what: Any) -> Probe:
+        """``ask(what)`` of the device; a device or port that failed leaves hypothesis at once."""
+        try:
+            return ask(what)
+        except DeviceAbort as exc:
+            raise DeviceGone(exc) from exc
 
     # ---- rules ----
 
@@ -182,7 +200,7 @@ class Sequences(RuleBasedStateMachine):
     @precondition(lambda m: m.model.latched is None and m.model.comm_errors_in_row < MAX_ALARMS_IN_ROW)
     @rule(bad=st.sampled_from([m for m in MALFORMED if not m.moves]))
     def malformed(self, bad: Any) -> None:
-        self.judge(self.dut.probe(bad.make(self.kit)))
+        self.judge(self._ask(self.dut.probe, bad.make(self.kit)))
 
     @rule()
     def reset(self) -> None:
@@ -218,8 +236,10 @@ def test_random_sequences(xac1_dut, xac1_kit, xac1_settings):
     run = seed(s.seed)(get_state_machine_test(machine, settings=config))
     try:
         run()
+    except DeviceGone as gone:
+        raise gone.abort from None  # the run stops (the device went away): not a verdict on the sequences
     except DeviceAbort:
-        raise  # the run stops (the device went away): not a verdict on the sequences
+        raise
     except Exception:
         if machine.failures:
             raise machine.failures[0] from None

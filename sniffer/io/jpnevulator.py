@@ -5,7 +5,9 @@ How this works: before every burst of bytes jpnevulator prints a timing line
 tty the line ends at the colon). Data lines follow, ``--width`` bytes each (16 by default) as
 ``30 52 56 0D 0A``; ``--byte-count`` puts an 8-digit hex index and a tab before the bytes (it counts per
 tty), ``--ascii`` a tab and an ASCII column after them. A file cut while jpnevulator was still running
-may end in a partial line with no ASCII column; that is read too.
+may end in a partial line with no ASCII column; that is read too. jpnevulator ends its file without a
+line end when stopped with Ctrl-C, as it always is: a last line that reads whole (a timing line, or a
+data line of whole hex bytes) is whole, not cut short; only one that does not read is reported.
 
 Host side default: a tty or alias whose name says ``host`` (``device`` marks the other), else the
 first tty that speaks (the host speaks first); ``--host-is`` takes an alias or a tty name. A capture
@@ -60,8 +62,10 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     side: str | None = None
     t: float | None = None
     clock = Clock(report)
+    whole = False  # did the last line read whole (a timing line, or a data line of whole bytes)?
     for number, raw in src.lines():
         line = raw
+        whole = False
         while line:
             m = _TIMING.search(line)
             if m and m.start() > 0:  # a timing line glued to a partial data line
@@ -88,8 +92,10 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
                                                       f"lines: host and device); its bytes are skipped")
                 else:
                     pending = Chunk(t, d, b"")
+                whole = _TIMING.fullmatch(line) is not None
                 break
             data = _data_bytes(line)
+            whole = data is not None
             if data is None:
                 report.problem(src.where(number), f"not a jpnevulator timing or data line: {shown(line)}",
                                nlines=1)
@@ -106,4 +112,6 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
             break
     if pending is not None and pending.data:
         yield pending
+    if whole:
+        src.unterminated = None  # the last line is whole, line end or not (jpnevulator's Ctrl-C)
     sides.check(report, src.name)

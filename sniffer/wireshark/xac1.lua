@@ -316,12 +316,26 @@ local function find_spec(raw, role, out)
   local head = raw:sub(1, HEADER_WIDTH)
   local fs = SPECS[role][head]
   if fs then return fs end
-  if raw:sub(1, 1) == LETTER_O_CHAR then
+  local lead_o = raw:sub(1, 1) == LETTER_O_CHAR
+  if lead_o then
     fs = SPECS[role][LEAD .. head:sub(2)]
     if fs then
       add(out, "letter-o", 0, fs.header .. " " .. role .. ": byte 0: the letter O, not the digit 0")
       return fs
     end
+  end
+  -- docs/protocol.md "Framing": a header in lower case (0rv) is read as its command, with a notice
+  local upper = head:upper()
+  fs = SPECS[role][lead_o and (LEAD .. upper:sub(2)) or upper]
+  if fs and not head:find("[\128-\255]") then
+    if lead_o then
+      add(out, "letter-o", 0, fs.header .. " " .. role .. ": byte 0: the letter O, not the digit 0")
+    end
+    local at = 1
+    while at < HEADER_WIDTH and head:sub(at + 1, at + 1) == fs.header:sub(at + 1, at + 1) do at = at + 1 end
+    add(out, "lowercase-hex", at, fs.header .. " " .. role .. ": byte " .. at .. ": expected the header " ..
+        fs.header .. " in upper case, got " .. string.format("%q", head))
+    return fs
   end
   add(out, "unknown-command", 0, role .. ": " .. string.format("%q", head) .. " is no " .. role .. " header")
   return nil
