@@ -117,7 +117,8 @@ def traffic_file(workdir: Path, kind: traffic.Kind, fmt: str, exchanges: int, se
 
 
 def measure(args: argparse.Namespace, workdir: Path) -> list[Row]:
-    xac1 = shutil.which("xac1") or str(Path(sys.executable).with_name("xac1"))
+    beside = Path(sys.executable).with_name("xac1")  # this environment's, before any other on PATH
+    xac1 = str(beside) if beside.exists() else shutil.which("xac1") or "xac1"
     tshark = None if args.no_tshark else shutil.which("tshark")
     rows: list[Row] = []
     for kind in args.kinds:

@@ -4,7 +4,6 @@ it replaced, kept here as a small reference (``_reference_*``), on generated con
 Optimized pieces (issue 14) and their references below:
 - ``Framer._frame_candidate``: one generated regex search for a cutting header (was a loop over every
   start byte); ``Framer.feed``: a chunk that is exactly one frame, with nothing held, goes straight out;
-- ``sniffer.io.pcap._Buffer``: slices of one block (was a bytearray copied on every peek);
 - ``sniffer.analyzer.to_record`` and ``Analyzer._line_errors``: no per-violation work on clean verdicts;
 - ``Tally.add``: no counter updates for records without violations;
 - ``FrameRecord.fields``: field names looked up once a frame class (was ``Frame.fields()``);
@@ -85,27 +84,6 @@ def _reference_feed(self: framer_mod.Framer, data: bytes, t: float | None = None
         self._ends.append(self.bytes_in)
         self._times.append(t)
     return self._drain(final=False)
-
-
-class _ReferenceBuffer:
-    def __init__(self, src: base_mod.Source) -> None:
-        self.src = src
-        self.data = bytearray()
-        self.offset = 0
-
-    def peek(self, n: int) -> bytes:
-        while len(self.data) < n:
-            more = self.src.read(max(n - len(self.data), pcap_mod._READ))
-            if not more:
-                break
-            self.data += more
-        return bytes(self.data[:n])
-
-    def skip(self, n: int) -> None:
-        self.peek(n)
-        n = min(n, len(self.data))
-        del self.data[:n]
-        self.offset += n
 
 
 def _reference_to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
@@ -260,7 +238,6 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(framer_mod.Framer, "_frame_candidate",
                                               _reference_frame_candidate))
         stack.enter_context(mock.patch.object(framer_mod.Framer, "feed", _reference_feed))
-        stack.enter_context(mock.patch.object(pcap_mod, "_Buffer", _ReferenceBuffer))
         stack.enter_context(mock.patch.object(analyzer_mod, "to_record", _reference_to_record))
         stack.enter_context(mock.patch.object(Analyzer, "_line_errors", _reference_line_errors))
         stack.enter_context(mock.patch.object(records_mod.Tally, "add", _reference_tally_add))
@@ -279,9 +256,9 @@ def test_reference_is_really_swapped_in():
     optimized = framer_mod.Framer._frame_candidate
     with reference():
         assert framer_mod.Framer._frame_candidate is not optimized
-        assert pcap_mod._Buffer is _ReferenceBuffer and socat_mod.wallclock is _reference_wallclock
+        assert socat_mod.wallclock is _reference_wallclock
         assert codec_mod.read_frame is _reference_read_frame
-    assert framer_mod.Framer._frame_candidate is optimized and pcap_mod._Buffer is not _ReferenceBuffer
+    assert framer_mod.Framer._frame_candidate is optimized
 
 
 # ---------------------------------------------------------------- the conversations ----

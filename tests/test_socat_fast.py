@@ -421,29 +421,6 @@ def test_memory_stays_bounded() -> None:
     assert 0 < len(builders[0].known) <= socat_mod._KNOWN
     assert all(len(body) <= socat_mod._KNOWN_TEXT for body in builders[0].known)
 
-
-def test_fast_chunks_are_plain_chunks() -> None:
-    """The fast path builds chunks by setting their slots: equal to, hashing as and printing as
-    ``Chunk(t, dir, data)``; if ``Chunk`` stops being that plain dataclass the fast path is off and the
-    reader still reads the same."""
-    assert socat_mod._CHUNK_SLOTS is not None
-    chunks = _read_text(_clean(50, "x"))
-    assert len(chunks) == 50 and all(type(c) is Chunk and c.error is None for c in chunks)
-    plain = [Chunk(c.t, c.dir, c.data) for c in chunks]
-    assert chunks == plain and [hash(c) for c in chunks] == [hash(c) for c in plain]
-    assert [repr(c) for c in chunks] == [repr(c) for c in plain]
-
-    @dataclasses.dataclass(frozen=True, slots=True)
-    class Checked(Chunk):  # type: ignore[misc]
-        def __post_init__(self) -> None:
-            pass
-
-    with mock.patch.object(socat_mod, "Chunk", Checked):
-        assert socat_mod._chunk_slots() is None
-    with mock.patch.object(socat_mod, "_CHUNK_SLOTS", None):
-        assert _steps(_clean(50, "x"), socat_mod.BLOCK)[0] == 100
-
-
 def _read_text(text: str) -> list[Chunk]:
     path = Path(_TMP.name) / "plain.log"
     path.write_text(text, encoding="latin-1")

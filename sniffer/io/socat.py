@@ -37,10 +37,9 @@ Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from collections.abc import Generator, Iterator
-from typing import Any, Final
+from typing import Final
 
 from xac1_proto.chunk import Chunk, Direction
 
@@ -84,20 +83,6 @@ _READ_SOME: Final = 1
 _READ_ALL: Final = 2
 _KNOWN: Final = 4096  # transfer bodies remembered (their text -> their bytes)
 _KNOWN_TEXT: Final = 160  # characters of the longest body remembered
-
-
-def _chunk_slots() -> tuple[Any, ...] | None:
-    """``Chunk.__new__`` and the setters of its slots ``t``, ``dir``, ``data``, ``error``: the fast path
-    builds chunks with them, a third cheaper than the frozen dataclass's ``__init__`` (which calls
-    ``object.__setattr__`` for each field) and the very same object. None (no fast path) if ``Chunk``
-    is not that plain dataclass any more."""
-    names = tuple(f.name for f in dataclasses.fields(Chunk))
-    plain = names == ("t", "dir", "data", "error") and getattr(Chunk, "__slots__", None) == names and \
-        not hasattr(Chunk, "__post_init__")
-    return (Chunk.__new__, *(getattr(Chunk, n).__set__ for n in names)) if plain else None
-
-
-_CHUNK_SLOTS: Final = _chunk_slots()
 
 
 def sniff(head: list[str]) -> int:
@@ -281,9 +266,9 @@ class _Transfers:
         until the next header (more hex rows could follow); when the run stops, it becomes ``cur``."""
         lines.ahead()
         m = _FAST.match(lines.buf, lines.pos) or _FAST_CRLF.match(lines.buf, lines.pos)
-        if m is None or lines.max_line < 256 or _CHUNK_SLOTS is None:  # < 256: headers come in pieces
+        if m is None or lines.max_line < 256:  # < 256: headers come in pieces
             return _READ_NONE
-        new, set_t, set_dir, set_data, set_error = _CHUNK_SLOTS
+        new = Chunk
         buf, pos, match = lines.buf, lines.pos, m.re.match
         fast_max = min(_FAST_MAX, (lines.max_line - 3) // 3)
         following, known, decimal = self.following, self.known, self.decimal
@@ -318,11 +303,7 @@ class _Transfers:
             elif cur_open:
                 cur_open = False
                 yield from self.finish(lines.number + 1)
-            last = new(Chunk)
-            set_t(last, base0 + int(frac) / powers[digits])
-            set_dir(last, dirs[mark])
-            set_data(last, data)
-            set_error(last, None)
+            last = new(base0 + int(frac) / powers[digits], dirs[mark], data)
             if rows is None:
                 held = True
             else:  # -x -v: ``--`` ended it
