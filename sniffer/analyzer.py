@@ -28,7 +28,7 @@ from xac1_proto import FrameBytes, Framer, Junk, motion, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
-from .records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, Row, Tally, TimeoutRecord
+from .records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
@@ -197,7 +197,10 @@ class Analyzer:
         if not judged:
             return
         self._judged = []
-        self.tally.count([_row(v, errors) for v, errors, _ in judged])
+        self.tally.count([  # the rows of ``Tally.count``
+            (v.kind, v.sender, len(v.raw), v.header, v.i, v.reply_to, v.latency_s,
+             v.codes if v.violations else (), v.sides if v.violations else (), bool(errors))
+            for v, errors, _ in judged])
         if out is not None:
             out += [to_record(v, errors, reason) for v, errors, reason in judged]
 
@@ -212,13 +215,6 @@ class Analyzer:
         while ranges and ranges[0][1] <= offset:
             ranges.pop(0)
         return tuple(e for start, end, e in ranges if start < offset + length and end > offset)
-
-
-def _row(v: Verdict, line_errors: tuple[str, ...]) -> Row:
-    """What the tally counts of a verdict (``Tally.count``)."""
-    violations = v.violations
-    return (v.kind, v.sender, len(v.raw), v.header, v.i, v.reply_to, v.latency_s,
-            v.codes if violations else (), v.sides if violations else (), bool(line_errors))
 
 
 def _inside_frame(event: FrameBytes | Junk) -> bool:
