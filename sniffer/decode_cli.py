@@ -2,8 +2,10 @@
 
 A thin shell in three parts: argument parsing (``add_arguments``, each value checked as it is parsed),
 source opening (``_open_sources``: each file opened once, ``-`` being standard input; the format sniffed
-from the buffered heads by ``sniffer.io.registry``, ``_choose_format``), and output (``_decode``: the
-sniffer's ``Analyzer`` makes records, the sniffer's views print them). Problems in the file (a malformed
+from the buffered heads by ``sniffer.io.registry``, ``_choose_format``), and output (``_decode``, in named
+steps: ``_analyzer`` with the rule options, ``_Outputs`` where records go, ``_read_all`` the chunks through
+the analyzer, ``_summary``, ``_publish``, ``_exit_status``; the sniffer's ``Analyzer`` judges, its views
+print; with ``--format summary`` alone no record is made). Problems in the file (a malformed
 line, a damaged record) are listed on stderr with file and line or byte offset, counted in the summary
 record, and what could be read is decoded anyway.
 

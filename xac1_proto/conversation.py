@@ -54,7 +54,8 @@ The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].si
 | ``unsolicited-answer`` | answer | nothing waits for it ("Violation codes") |
 | ``garbage`` | junk | bytes that form no frame ("Framing") |
 
-Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a command): a command
+Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a command; what each
+command reads and writes of it is one handler a header, declared in the table ``_LEARNERS``): a command
 refused with an alarm takes no effect (silent item 18); a garbled, missing or faulty answer makes what
 the command would have changed unknown. What docs/protocol.md leaves open is never judged: it becomes
 ``unknown`` and is learnt from the next answer (the alarm code of an error, item 1; the OUT ports after
