@@ -15,10 +15,12 @@ remembered (``_Clock``), and offline lines are written in batches (``_Lines``).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import json
 from collections.abc import Callable, Iterable
 from math import modf
+from operator import attrgetter
 from typing import IO, Any, Protocol
 
 from rich.console import Console
@@ -142,21 +144,34 @@ def _json_line(record: Record) -> str:
 
 _HEADER_JSON = {h: _ENCODE(h) for role in spec.ROLES for h in spec.HEADERS[role]}
 # frame class -> its fields as a JSON object with %d for each value (every field a number), or None
-_FIELDS_FORMAT: dict[type, str | None] = {}
+_FIELDS_FORMAT: dict[type, tuple[str, Callable[[Any], tuple[Any, ...]]] | None] = {}
+_INT = {int}
+
+
+def _fields_format(cls: type) -> tuple[str, Callable[[Any], tuple[Any, ...]]] | None:
+    """A frame class's fields as a JSON object with ``%d`` for each value, and the getter of the values
+    (every field a number); None for a class with a text field."""
+    names = tuple(f.name for f in dataclasses.fields(cls))
+    if not all(spec.FIELDS[name].radix and not spec.FIELDS[name].text for name in names):
+        return None
+    get = attrgetter(*names) if len(names) > 1 else (lambda frame: tuple(getattr(frame, n) for n in names))
+    return "{" + ",".join(f'"{name}":%d' for name in names) + "}", get
 
 
 def _fields_json(frame: Any) -> str:
     """``json.dumps(frame_fields(frame))``: a frame whose fields are all ints through its class's format."""
-    fields = frame_fields(frame)
     cls = type(frame)
-    shape = _FIELDS_FORMAT.get(cls, "")
-    if shape == "":
-        shape = _FIELDS_FORMAT[cls] = "{" + ",".join(f'"{name}":%d' for name in fields) + "}" \
-            if all(spec.FIELDS[name].radix and not spec.FIELDS[name].text for name in fields) else None
-    values = tuple(fields.values())
-    if shape is None or set(map(type, values)) - {int}:
-        return _ENCODE(fields)
-    return shape % values
+    if cls not in _FIELDS_FORMAT:
+        _FIELDS_FORMAT[cls] = _fields_format(cls)
+    shape = _FIELDS_FORMAT[cls]
+    if shape is not None:
+        fmt, get = shape
+        values = get(frame)
+        if set(map(type, values)) <= _INT:
+            return fmt % values
+    return _ENCODE(frame_fields(frame))
+
+
 _DIR_JSON = {"host": '"host"', "device": '"device"'}
 
 
@@ -296,37 +311,46 @@ class TextView:
 
     def write_many(self, records: Iterable[Record]) -> None:
         """``write`` each record (for the decode loop: one call a batch of records)."""
-        write = self.write
+        write, plain, write_plain = self.write, self._plain, self._write_plain
         for record in records:
-            write(record)
+            if not (plain and type(record) is FrameRecord and write_plain(record)):
+                write(record)
 
     def _write_plain(self, record: FrameRecord) -> bool:
         """A frame record's lines without colour, formatted here (what ``_print`` makes of ``line`` and
         ``_after``); False when a line holds a tab (the console expands those): nothing was written."""
-        frame = record.frame
+        (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last, line_errors,
+         _sides, _window) = record
         if frame is None:
-            decoded = f"{record.header or 'unknown'} (not decodable)"
+            decoded = f"{header or 'unknown'} (not decodable)"
         else:
             decoded = str(frame)
-            if record.header == spec.ALARM_HEADER:
+            if header == spec.ALARM_HEADER:
                 decoded += f" ({spec.alarm_meaning(frame.fields()['code'])})"
-        direction = record.dir
         tail = ""
-        if direction == "device" and record.reply_to is not None:  # _tail
-            latency = record.latency_s
-            tail = f"  re #{record.reply_to}" if latency is None else \
-                f"  re #{record.reply_to}  {round(latency * 1000.0, 3):.1f} ms"
+        if direction == "device" and reply_to is not None:  # _tail
+            tail = f"  re #{reply_to}" if latency is None else \
+                f"  re #{reply_to}  {round(latency * 1000.0, 3):.1f} ms"
         arrow = "→" if direction == "host" else "←"
-        line = (f"{self._clock.show(record.t)} #{record.i:<4} {direction:<6} {arrow} "
-                f"{show_raw(record.raw):<22} {decoded}{tail}\n")
-        after = [''.join(text for text, _ in parts) + "\n" for parts in _after(record)] \
-            if record.violations or record.line_errors else []
-        if "\t" in line or any("\t" in text for text in after):
+        line = (f"{self._clock.show(t)} #{i:<4} {direction:<6} {arrow} "
+                f"{show_raw(raw):<22} {decoded}{tail}\n")
+        if violations or line_errors:
+            after = ["".join(text for text, _ in parts) + "\n" for parts in _after(record)]
+            if "\t" in line or any("\t" in text for text in after):
+                return False
+            for text in (line, *after):
+                self._lines.add(text)
+            return True
+        if "\t" in line:
             return False
         lines = self._lines
-        lines.add(line)
-        for text in after:
-            lines.add(text)
+        if lines.batched:  # lines.add(line)
+            pending = lines.pending
+            pending.append(line)
+            if len(pending) >= BATCH_LINES:
+                lines.write_pending()
+        else:
+            lines.add(line)
         return True
 
     def line(self, record: Record) -> list[Part]:
