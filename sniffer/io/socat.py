@@ -54,11 +54,13 @@ _HEADER: Final = re.compile(
     r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?"
     r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})")
 _HEADER_LINE: Final = re.compile(_HEADER.pattern + r"(.*)", re.DOTALL)  # and what follows on the line
-# _HEADER (its time's minute and second apart), what follows on its line (CR included) and, when it
-# starts with a space, the next line
+# _HEADER with what follows on its line (CR included) and, when it starts with a space, the next line;
+# the date and the minute are taken as any characters (a quicker match) and checked by _MINUTE when
+# they change (in latin-1 text ``\\d`` is ``[0-9]``)
 _HEADER_ROW: Final = re.compile(
-    r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d):(\d\d)(?:\.(\d+))?\s+)?"
-    r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})([^\n]*)\n(?:( [^\n]*)\n)?")
+    r"([<>]) (?:(.{10}) (.{5}):([0-9]{2})(?:\.([0-9]+))?\s+)?"
+    r"length=([0-9]{1,18}) from=([0-9]{1,18}) to=([0-9]{1,18})([^\n]*)\n(?:( [^\n]*)\n)?")
+_MINUTE: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d")
 _POWERS: Final = tuple(10 ** n for n in range(13))
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
@@ -264,10 +266,18 @@ class _Transfers:
             if first == ">" or first == "<":
                 m = header_row(buf, pos)
                 cur = self.cur
-                if m is not None and ((after := m.end()) - pos < max_line or m.end(9) - pos < max_line) \
-                        and not continued and (held is not None or cur is None or cur.mode is not _TEXT):
-                    number += 1
+                if m is None:
+                    pass
+                elif ((after := m.end()) - pos < max_line or m.end(9) - pos < max_line) and not continued \
+                        and (held is not None or cur is None or cur.mode is not _TEXT):
                     mark, date, hhmm, ss, frac, length_s, start_s, end_s, tail, row = m.groups()
+                    if date is not None and (hhmm != minute or date != day) and \
+                            _MINUTE.fullmatch(f"{date} {hhmm}") is None:
+                        m = None  # not a header as _HEADER reads one: step says what it is
+                else:
+                    m = None
+                if m is not None:
+                    number += 1
                     if after - pos < max_line or row is not None and len(row) < max_line:
                         pos = after  # (both lines shorter than MAX_LINE: pieces are read by step)
                     else:
