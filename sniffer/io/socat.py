@@ -262,13 +262,13 @@ class _Transfers:
         last_t = timeline.last  # the time of the last header read here (times.last too, when it was one)
         while True:
             piece: tuple[int, str] | None = None
-            first = buf[pos:pos + 1]
-            if first == ">" or first == "<":
-                m = header_row(buf, pos)
+            m = header_row(buf, pos)  # the most common line: fails at once on any other
+            if m is None:
+                first = buf[pos:pos + 1]
+            else:
+                first = ""
                 cur = self.cur
-                if m is None:
-                    pass
-                elif ((after := m.end()) - pos < max_line or m.end(9) - pos < max_line) and not continued \
+                if ((after := m.end()) - pos < max_line or m.end(9) - pos < max_line) and not continued \
                         and (held is not None or cur is None or cur.mode is not _TEXT):
                     mark, date, hhmm, ss, frac, length_s, start_s, end_s, tail, row = m.groups()
                     if date is not None and (hhmm != minute or date != day) and \
