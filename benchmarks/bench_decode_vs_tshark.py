@@ -117,10 +117,11 @@ def traffic_file(workdir: Path, kind: traffic.Kind, fmt: str, exchanges: int, se
 
 
 def measure(args: argparse.Namespace, workdir: Path) -> list[Row]:
+    """Every row, each printed (to stderr) as soon as it is measured: a long run's rows are not lost."""
+    rows = _Rows()
     beside = Path(sys.executable).with_name("xac1")  # this environment's, before any other on PATH
     xac1 = str(beside) if beside.exists() else shutil.which("xac1") or "xac1"
     tshark = None if args.no_tshark else shutil.which("tshark")
-    rows: list[Row] = []
     for kind in args.kinds:
         peer = None  # tshark's seconds on this traffic's pcapng (the socat log holds the same frames)
         pcapng, n = traffic_file(workdir, kind, "pcapng", args.exchanges, args.seed)
@@ -140,6 +141,14 @@ def measure(args: argparse.Namespace, workdir: Path) -> list[Row]:
                                        library_path(path, fmt, args.repeat), strict=True):
                     rows.append(Row(kind, fmt, label, n / wall, _mb(path) / wall, None, _ratio(peer, wall)))
     return rows
+
+
+class _Rows(list[Row]):
+    """The rows measured, each printed to stderr as it comes."""
+
+    def append(self, row: Row) -> None:
+        super().append(row)
+        print("measured:", *row, file=sys.stderr, flush=True)
 
 
 def _mb(path: Path) -> float:
