@@ -282,7 +282,7 @@ damages = st.lists(st.one_of(
     st.tuples(st.just("field"), st.integers(0, 100), field_offsets, values)),
     max_size=3)
 READS = [1, 2, 5, 16, 61, 100, 509, 4096, 1 << 17]
-reads = st.tuples(st.sampled_from(READS[-3:]), st.sampled_from(READS))  # one large enough for a fast walk
+reads = st.tuples(st.sampled_from(READS[-3:]), st.sampled_from(READS))  # a large read size, and any
 host_sides = st.sampled_from([None, None, None, "TX", "RX", "rx", "nobody"])
 give_ups = st.sampled_from([None, None, None, 1, 3])
 

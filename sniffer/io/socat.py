@@ -20,14 +20,15 @@ One parser: the file is read in blocks of ``BLOCK`` characters (``_Lines``: neve
 into lines (numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number).
 Each line is classified (``tokenize``: what a line is) and acted on by the transfer builder
 (``_Transfers``: one chunk per transfer, handed on in bounded pieces; ``length=`` beyond 16 MiB is
-damage), whatever the dump's style and state. ``_Transfers.read`` classifies the lines that make up
-almost every dump first, by their first character, before any regular expression: a header (``<``,
-``>``: ``_HEADER_LINE``, then ``_header``: counters, time, checks), a hex row (a space: the bytes by
-``bytes.fromhex`` checked against ``bytes.hex``, lower case and single spaces as ``_HEX`` reads them,
-else ``_HEX`` itself; short rows remembered, a conversation repeats itself) and ``--``; every other
-line, and any line while -v text is being read, goes through ``step``, which does the same for every
-kind. A header's time is its whole second (``wallclock``, the last one remembered) plus the fraction,
-computed as ``wallclock`` computes it. -v text is decoded a run of characters at a time.
+damage), whatever the dump's style and state. ``_Transfers.read`` takes the lines that make up almost
+every dump itself, before any other classification: a header and the hex row after it, matched at once
+(``_HEADER_ROW``; the match fails at once on any other line), then ``_header``'s checks (counters,
+length, time) done in place; a further hex row (a leading space). A hex row's bytes come from
+``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them), else
+from ``_HEX`` itself; short rows are remembered (a conversation repeats itself). Every other line, and
+any line while -v text is being read, goes through ``step``, which does the same for every kind. A
+header's time is its minute's start (``wallclock``, remembered) plus its seconds and fraction, computed
+as ``wallclock`` computes it. -v text is decoded a run of characters at a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
@@ -246,9 +247,9 @@ class _Transfers:
         self.known: dict[str, bytes] = {}  # hex rows read (text -> bytes)
 
     def read(self, lines: _Lines) -> Iterator[Chunk]:
-        """Every line of the file: the common ones classified by their first character and acted on here,
-        the others by ``step`` (see the module docstring). A header line and the line after it, when that
-        starts with a space (a hex row), are matched at once (``_HEADER_ROW``). The transfer they make is
+        """Every line of the file: the common ones taken here, the others by ``step`` (see the module
+        docstring). A header line and the line after it, when that starts with a space (a hex row), are
+        matched at once (``_HEADER_ROW``). The transfer they make is
         held in locals (its bytes, not copied) until the next line shows whether more rows follow; it
         becomes ``cur`` before anything else reads the state. The position in the file, the line number
         and the last time are locals too, handed to ``lines`` and the clocks before anything else."""
