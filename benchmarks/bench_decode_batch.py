@@ -31,13 +31,12 @@ def archive(folder: Path, files: int, exchanges: int, seed: int) -> int:
     """Write the archive (files already there are kept: same seed, same bytes); returns its frames."""
     frames = 0
     for k in range(files):
-        anomalous = k % 4 >= 2
-        kind = "anomalous" if anomalous else "clean"
+        kind: traffic.Kind = "anomalous" if k % 4 >= 2 else "cell"
         suffix, writer = (".pcapng", traffic.write_pcapng) if k % 2 == 0 else (".log", traffic.write_socat)
         path = folder / f"capture-{k:02d}-{kind}{suffix}"
         if not path.exists():
-            writer(traffic.conversation(exchanges, seed + k, anomalous), path)
-        frames += sum(1 for _ in traffic.conversation(exchanges, seed + k, anomalous))
+            writer(traffic.conversation(exchanges, seed + k, kind), path)
+        frames += sum(1 for _ in traffic.conversation(exchanges, seed + k, kind))
     return frames
 
 

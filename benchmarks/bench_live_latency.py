@@ -1,12 +1,11 @@
-"""Benchmark: the live sniffer's analyzer cost per chunk, fast lane on against the full path, in one run.
+"""Benchmark: the live sniffer's analyzer cost per chunk (``Analyzer.feed`` with ticks between chunks).
 
 ``xac1 sniff`` feeds each chunk as a tap gives it and ticks once a poll (``sniffer.live``: every 50 ms at
 most), so a poll may end between a command and its answer. This replays a seeded conversation
-(``traffic.py``, clean and anomalous) through ``Analyzer.feed`` with a ``tick`` after each chunk with
-probability ``--tick`` (1: every chunk, the worst case for the fast lane: nothing can be memoised across a
-tick), and reports microseconds per chunk for ``Analyzer(fast=True)`` (what ``xac1 sniff`` runs) and
-``Analyzer(fast=False)`` (the full path alone), best of ``--rounds``, and their ratio. Issue 14: the
-live sniffer's per-chunk latency must not get worse (ratio at most about 1).
+(``traffic.py``: cell, random and anomalous) through ``Analyzer.feed`` with a ``tick`` after each chunk with
+probability ``--tick`` (1: every chunk), and reports microseconds per chunk, records made, best of
+``--rounds``. Issues 14 and 22: the live sniffer's per-chunk latency must not get worse; compare with the
+figures of an earlier commit run on the same machine (benchmarks/README.md).
 
 Run: ``python benchmarks/bench_live_latency.py [--exchanges 30000] [--tick 1 0.5 0.1]``.
 """
@@ -27,8 +26,8 @@ from sniffer.analyzer import Analyzer  # noqa: E402
 from xac1_proto.chunk import Chunk  # noqa: E402
 
 
-def per_chunk_us(chunks: list[Chunk], ticks: list[bool], fast: bool) -> float:
-    analyzer = Analyzer(fast=fast)
+def per_chunk_us(chunks: list[Chunk], ticks: list[bool]) -> float:
+    analyzer = Analyzer()
     t0 = time.perf_counter()
     for chunk, tick in zip(chunks, ticks, strict=True):
         analyzer.feed(chunk)
@@ -48,16 +47,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
     print(f"{args.exchanges} exchanges, best of {args.rounds}; microseconds per chunk")
-    print(f"{'traffic':10} {'tick':>5} {'fast lane':>10} {'full path':>10} {'ratio':>6}")
-    for anomalous in (False, True):
-        chunks = list(traffic.conversation(args.exchanges, args.seed, anomalous))
+    print(f"{'traffic':10} {'tick':>5} {'us/chunk':>10}")
+    for kind in traffic.KINDS:
+        chunks = list(traffic.conversation(args.exchanges, args.seed, kind))
         for p in args.tick:
             rng = random.Random(args.seed)
             ticks = [rng.random() < p for _ in chunks]
-            fast = min(per_chunk_us(chunks, ticks, True) for _ in range(args.rounds))
-            full = min(per_chunk_us(chunks, ticks, False) for _ in range(args.rounds))
-            print(f"{'anomalous' if anomalous else 'clean':10} {p:5.2f} {fast:10.1f} {full:10.1f} "
-                  f"{fast / full:6.2f}")
+            best = min(per_chunk_us(chunks, ticks) for _ in range(args.rounds))
+            print(f"{kind:10} {p:5.2f} {best:10.1f}")
     return 0
 
 

@@ -6,20 +6,17 @@ not: it frames each direction with its own ``xac1_proto.Framer``, passes time al
 ``tick(now)``; a partial device frame that has been quiet for ``device_idle_flush`` comes out as junk,
 and one still arriving keeps its command's answer window open), keeps the capture tool's line errors
 (``Chunk.error``) with the bytes they flag (``line_errors`` on every record holding a flagged byte; they
-are not violations), and turns the engine's verdicts into the records of docs/output.md's JSON lines schema:
-``FrameRecord``, ``JunkRecord``, ``TimeoutRecord`` (``no-answer``), each with the side of each violation
-(``sides``), counted by ``Tally`` for the summary. Nothing here reads a clock.
+are not violations), counts every verdict in ``Tally`` for the summary, and turns the verdicts into the
+records of docs/output.md's JSON lines schema when the caller wants records: ``FrameRecord``, ``JunkRecord``,
+``TimeoutRecord`` (``no-answer``), each with the side of each violation (``sides``). Nothing here reads
+a clock.
+
+One path: ``feed`` (a chunk; the live sniffer) and ``feed_many`` (a batch of chunks in one loop; decode)
+both run each chunk through ``_step``. Records are made only where the output needs them: ``feed_many``
+without a list to fill (``xac1 decode --format summary``) counts the verdicts and makes none.
 
 Captures without time (raw files, interceptty without ``-T``, sigrok without a sample rate): order is all
 there is; the engine's docstring says what it then concludes.
-
-Speed (``fast``, on by default): ``sniffer.fastlane`` memoises what this full path gave for a clean
-command and its answer from the quiet state and gives the same records again when the same two chunks
-come back under the same knowledge (or the same values in the part of it they read: ``sniffer.readset``),
-bookkeeping included; every call returns what it returns without it
-(tests/test_fastlane_equivalence.py). ``feed_many`` (decode's path) takes runs of such exchanges from the
-chunks' iterator in one loop (tests/test_feed_many_equivalence.py). The engine is driven only through the
-analyzer.
 """
 
 from __future__ import annotations
@@ -31,23 +28,20 @@ from xac1_proto import FrameBytes, Framer, Junk, motion, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
-from .fastlane import FastLane
-from .records import CAPTURE_ENDED, CleanExchange, FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
+from .records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
 NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent item 17
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
-FEED_BATCH: Final = 1024  # chunks ``feed_many`` takes at most (about) in one call
+FEED_BATCH: Final = 1024  # chunks ``feed_many`` takes at most in one call
 FEED_BYTES: Final = 1 << 18  # bytes after which ``feed_many`` returns (its records hold them)
 
 
 class Analyzer:
-    """Feed ``Chunk``s of both directions in the order seen; get records. See the module docstring.
-    ``fast``: the memo of clean exchanges (the same records, sooner); off, every chunk takes the full
-    path."""
+    """Feed ``Chunk``s of both directions in the order seen; get records. See the module docstring."""
 
     def __init__(self, no_answer_timeout: float = NO_ANSWER_TIMEOUT_S, storm_limit: int = spec.STORM_LIMIT,
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,
-                 device_idle_flush: float | None = DEVICE_IDLE_FLUSH_S, fast: bool = True) -> None:
+                 device_idle_flush: float | None = DEVICE_IDLE_FLUSH_S) -> None:
         self.conversation = Conversation(no_answer_timeout=no_answer_timeout, storm_limit=storm_limit,
                                          speeds=speeds)
         self.device_idle_flush = device_idle_flush
@@ -57,94 +51,80 @@ class Analyzer:
         self._device_since: float | None = None  # time of the oldest pending device byte
         self._device_last: float | None = None  # time of the latest device chunk
         self._closed = False
-        # the memo of clean exchanges (sniffer/fastlane.py): the same records, sooner; None: off
-        self.lane: FastLane | None = FastLane(self) if fast else None
+        self._judged: list[tuple[Verdict, tuple[str, ...], str]] = []  # verdicts not yet counted
 
     # ---- input ----
 
     def feed(self, chunk: Chunk) -> list[Record]:
         """Bytes seen on one line; the records they complete (time passing to ``chunk.t`` first)."""
+        out: list[Record] = []
+        self.feed_many(iter((chunk,)), out)
+        return out
+
+    def feed_many(self, chunks: Iterator[Chunk], out: list[Record] | None = None,
+                  limit: int = FEED_BATCH) -> int:
+        """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them or ``FEED_BYTES``, in one
+        loop: their records, the same and in the same order as ``feed`` gives, appended to ``out`` (an
+        exception, Ctrl-C included, loses none of the chunks taken); ``out`` None: no records are made,
+        the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
+
+        Each chunk: time passes to its time (``_tick``), its bytes are framed by its line's framer (a
+        device line's partial frame keeps the time it began: an answer that starts in time is in time),
+        and its events are judged (``_judge``)."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        if chunk.dir not in (HOST, DEVICE):
-            raise ValueError(f"chunk direction must be 'host' or 'device', got {chunk.dir!r}")
-        lane = self.lane
-        if lane is None:
-            return self._feed(chunk)
-        if lane.skip:  # the lane steps aside for a while (sniffer/fastlane.py, BACKOFF)
-            lane.skip -= 1
-            return self._feed(chunk)
-        return lane.feed(chunk)
-
-    def feed_many(self, chunks: Iterator[Chunk], out: list[Record | CleanExchange], clean: bool = True,
-                  limit: int = FEED_BATCH, lean: bool = False) -> int:
-        """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them (one more to end an exchange)
-        or ``FEED_BYTES``:
-        their records, the same and in the same order as ``feed`` one chunk at a time, appended to ``out``
-        as they are made (an exception, Ctrl-C included, loses none given so far). Returns the chunks
-        taken: 0 at the end.
-        ``clean`` False: clean frame records that the fast lane answers in bulk are counted, not made (an
-        output of only the summary needs none); every other record still comes. ``lean``: such an exchange
-        comes as one ``CleanExchange`` (the memo's records and the numbers: what a JSON lines view prints)
-        instead of its two records.
-
-        Faster than ``feed`` one chunk at a time: after an exchange answered from the memo, the next ones
-        are taken in one loop (``FastLane.stretch``), their bookkeeping done once."""
-        lane = self.lane
-        feed = self.feed
+        framers, errors_of, tick, judge = self._framers, self._errors, self._tick, self._judge
+        device = framers[DEVICE]
         taken = 0
         size = 0
-        for chunk in chunks:
-            taken += 1
-            size += len(chunk.data)
-            if lane is None:
-                out += feed(chunk)
-            else:
-                hits = lane.hits
-                out += feed(chunk)
-                if lane.hits != hits and taken < limit and lane.can_stretch():
-                    taken += lane.stretch(chunks, out, clean, limit - taken, lean)
-            if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
-                break
+        try:
+            for chunk in chunks:
+                t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
+                framer = framers.get(direction)
+                if framer is None:
+                    raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
+                taken += 1
+                if t is not None:
+                    tick(t)
+                if error and data:
+                    errors_of[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
+                if framer is device and data:
+                    pending_before = framer.pending
+                    events = framer.feed(data, t)
+                    self._device_last = t
+                    if not framer.pending:
+                        self._device_since = None
+                    elif not pending_before:
+                        self._device_since = t  # else keep the older time: never expire too early
+                else:
+                    events = framer.feed(data, t)
+                if events:
+                    judge(direction, events)
+                size += len(data)
+                if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
+                    break
+        finally:
+            self._emit(out)
         return taken
-
-    def _feed(self, chunk: Chunk) -> list[Record]:
-        """The full path of ``feed`` (the fast lane's fallback)."""
-        out: list[Record] = []
-        if chunk.t is not None:
-            out += self._tick(chunk.t)
-        framer = self._framers[chunk.dir]
-        if chunk.error and chunk.data:
-            self._errors[chunk.dir].append((framer.bytes_in, framer.bytes_in + len(chunk.data), chunk.error))
-        pending_before = framer.pending
-        events = framer.feed(chunk.data, chunk.t)
-        if chunk.dir == DEVICE and chunk.data:
-            self._device_last = chunk.t
-            if framer.pending == 0:
-                self._device_since = None
-            elif pending_before == 0:
-                self._device_since = chunk.t  # else keep the older time: never expire too early
-        for event in events:
-            out += self._event(chunk.dir, event)
-        return out
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
-        lane = self.lane
-        if lane is not None and not lane.skip:  # stepping aside, it holds and observes nothing
-            lane.full_path()
-        return self._tick(now)
-
-    def _tick(self, now: float) -> list[Record]:
         out: list[Record] = []
-        framer = self._framers[DEVICE]
-        if (self.device_idle_flush is not None and framer.pending and self._device_last is not None
-                and now - self._device_last >= self.device_idle_flush):
-            self._device_since = None
-            for event in framer.flush():
-                out += self._event(DEVICE, event)
-        out += self._records(self.conversation.tick(now, self._device_since))
+        try:
+            self._tick(now)
+        finally:
+            self._emit(out)
         return out
+
+    def _tick(self, now: float) -> None:
+        framer = self._framers[DEVICE]
+        flush, last = self.device_idle_flush, self._device_last
+        if flush is not None and last is not None and now - last >= flush and framer.pending:
+            self._device_since = None
+            self._judge(DEVICE, framer.flush())
+        verdicts = self.conversation.tick(now, self._device_since)
+        if verdicts:
+            self._judged += [(v, (), "") for v in verdicts]
 
     def close(self, now: float | None = None) -> list[Record]:
         """End of data: partial frames come out as junk; a command still waiting is ``no-answer`` when
@@ -152,17 +132,20 @@ class Analyzer:
         out: list[Record] = []
         if self._closed:
             return out
-        if self.lane is not None:
-            self.lane.full_path()
-        if now is not None:
-            out += self._tick(now)
-        for direction in (HOST, DEVICE):
-            events = self._framers[direction].flush()
-            cut = events[-1] if events and _inside_frame(events[-1]) else None
-            for event in events:
-                out += self._cut(direction, event) if event is cut else self._event(direction, event)
-        self._device_since = None
-        out += self._records(self.conversation.close(now))
+        try:
+            if now is not None:
+                self._tick(now)
+            for direction in (HOST, DEVICE):
+                events = self._framers[direction].flush()
+                if events and _inside_frame(events[-1]):  # the data ended inside this frame (issue 23)
+                    self._judge(direction, events[:-1])
+                    self._judge_cut(direction, events[-1])
+                else:
+                    self._judge(direction, events)
+            self._device_since = None
+            self._judged += [(v, (), "") for v in self.conversation.close(now)]
+        finally:
+            self._emit(out)
         self.tally.unanswered += self.conversation.cut_short()
         self._closed = True
         return out
@@ -170,60 +153,65 @@ class Analyzer:
     @property
     def waiting(self) -> bool:
         """Does anything the host sent (a command, an error, a discarded line) wait for an answer?"""
-        if self.lane is not None:
-            self.lane.settle()
         return self.conversation.waiting
 
     @property
     def expecting_answer(self) -> bool:
         """Does a well-formed command wait for its answer (see the engine)?"""
-        if self.lane is not None:
-            self.lane.settle()
         return self.conversation.expecting_answer
 
     def bytes_in(self, direction: str) -> int:
         """Bytes fed so far on one line."""
-        if self.lane is not None:
-            self.lane.settle()
         return self._framers[direction].bytes_in
 
     def summary(self) -> dict[str, object]:
         """The summary record (schema's last line) for everything so far."""
         return self.tally.summary()
 
-    # ---- events to the engine, verdicts to records ----
+    # ---- events to the engine, verdicts to the tally and to records ----
 
-    def _event(self, direction: str, event: FrameBytes | Junk) -> list[Record]:
+    def _judge(self, direction: str, events: list[FrameBytes | Junk]) -> None:
+        """The engine's verdicts on one line's events, each kept with the line errors of its bytes and the
+        framer's reason (junk) until ``_emit``."""
         c = self.conversation
-        junk = isinstance(event, Junk)
-        if isinstance(event, Junk) and direction == DEVICE:  # a flushed partial line may be an answer
-            verdicts = c.device_junk(event.raw, event.t_first, event.t_last, event.reason == "flushed")
-        elif direction == HOST:
-            verdicts = (c.host_junk if junk else c.host_frame)(event.raw, event.t_first, event.t_last)
-        else:
-            verdicts = c.device_frame(event.raw, event.t_first, event.t_last)
-        errors = self._line_errors(direction, event.offset, len(event.raw))
-        reason = event.reason if isinstance(event, Junk) else ""
-        return self._records(verdicts, errors, reason)
+        judged = self._judged
+        flagged = self._errors[direction]
+        host = direction == HOST
+        for event in events:
+            if type(event) is FrameBytes:
+                reason = ""
+                verdicts = (c.host_frame if host else c.device_frame)(event.raw, event.t_first, event.t_last)
+            else:
+                reason = event.reason  # type: ignore[union-attr]
+                if host:
+                    verdicts = c.host_junk(event.raw, event.t_first, event.t_last)
+                else:  # a flushed partial line may be an answer
+                    verdicts = c.device_junk(event.raw, event.t_first, event.t_last, reason == "flushed")
+            errors = self._line_errors(direction, event.offset, len(event.raw)) if flagged else ()
+            for v in verdicts:
+                judged.append((v, errors, reason))
 
-    def _cut(self, direction: Direction, event: FrameBytes | Junk) -> list[Record]:
-        """The data ended inside this frame: a record that says so, no violation (the engine's)."""
+    def _emit(self, out: list[Record] | None) -> None:
+        """The verdicts judged since the last call: counted, and made records into ``out`` (None: none)."""
+        judged = self._judged
+        if not judged:
+            return
+        self._judged = []
+        self.tally.count([  # the rows of ``Tally.count``
+            (v.kind, v.sender, len(v.raw), v.header, v.i, v.reply_to, v.latency_s,
+             v.codes if v.violations else (), v.sides if v.violations else (), bool(errors))
+            for v, errors, _ in judged])
+        if out is not None:
+            out += [to_record(v, errors, reason) for v, errors, reason in judged]
+
+    def _judge_cut(self, direction: Direction, event: FrameBytes | Junk) -> None:
+        """The data ended inside this frame: the engine's verdict that says so (no violation)."""
         verdicts = self.conversation.ended_inside_frame(direction, event.raw, event.t_first, event.t_last)
-        return self._records(verdicts, self._line_errors(direction, event.offset, len(event.raw)))
-
-    def _records(self, verdicts: list[Verdict], errors: tuple[str, ...] = (),
-                 reason: str = "") -> list[Record]:
-        out: list[Record] = []
-        for v in verdicts:
-            record = to_record(v, errors, reason)
-            self.tally.add(record)
-            out.append(record)
-        return out
+        errors = self._line_errors(direction, event.offset, len(event.raw)) if self._errors[direction] else ()
+        self._judged += [(v, errors, "") for v in verdicts]
 
     def _line_errors(self, direction: str, offset: int, length: int) -> tuple[str, ...]:
         ranges = self._errors[direction]
-        if not ranges:  # the usual capture: no line errors at all
-            return ()
         while ranges and ranges[0][1] <= offset:
             ranges.pop(0)
         return tuple(e for start, end, e in ranges if start < offset + length and end > offset)
@@ -243,23 +231,23 @@ def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -
         codes, sides = v.codes, v.sides
     else:  # the clean frame: the same empty tuples, without the generators
         details = codes = sides = ()
-    if v.kind == "no-answer":
+    kind = v.kind
+    if kind == "host-frame" or kind == "device-frame":
+        return FrameRecord(v.i, v.t, v.sender, v.raw, v.header, v.frame,  # type: ignore[arg-type]
+                           codes, details, v.reply_to, v.latency_s, v.t_last, line_errors, sides,
+                           v.waited_s if kind == "host-frame" else None)
+    if kind == "no-answer":
         assert v.reply_to is not None
         return TimeoutRecord(command=v.reply_to, t=v.t, header=v.header, waited_s=v.waited_s,
                              details=details, sides=sides)
     assert v.i is not None
     direction: Direction = v.sender
-    if v.kind == "cut":
+    if kind == "cut":
         return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=CAPTURE_ENDED, violations=(),
                           line_errors=line_errors, reply_to=v.reply_to, latency_s=None)
-    if v.kind in ("host-junk", "device-junk"):
-        return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=reason or "flushed",
-                          violations=codes, details=details, line_errors=line_errors, sides=sides,
-                          reply_to=v.reply_to, latency_s=v.latency_s)
-    return FrameRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, header=v.header, frame=v.frame,
-                       violations=codes, details=details, reply_to=v.reply_to, latency_s=v.latency_s,
-                       t_last=v.t_last, line_errors=line_errors, sides=sides,
-                       window_s=v.waited_s if v.kind == "host-frame" else None)
+    return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=reason or "flushed",
+                      violations=codes, details=details, line_errors=line_errors, sides=sides,
+                      reply_to=v.reply_to, latency_s=v.latency_s)
 
 
 def analyze(chunks: list[Chunk] | tuple[Chunk, ...], **options: object) -> list[Record]:

@@ -3,7 +3,9 @@
 A thin shell in three parts: argument parsing (``add_arguments``, each value checked as it is parsed),
 source opening (``sniffer.capture_args``, shared with ``xac1 replay``: each file opened once, ``-`` being
 standard input; the format sniffed from the buffered heads by ``sniffer.io.registry``), and output
-(``_decode``: the sniffer's ``Analyzer`` makes records, the sniffer's views print them). Problems in the
+(``_decode``, in named steps: ``_analyzer`` with the rule options, ``_Outputs`` where records go,
+``_read_all`` the chunks through the analyzer, ``_summary``, ``_publish``, ``_exit_status``; the sniffer's
+``Analyzer`` judges, its views print; with ``--format summary`` alone no record is made). Problems in the
 file (a malformed line, a damaged record) are listed on stderr with file and line or byte offset, counted
 in the summary record, and what could be read is decoded anyway.
 
@@ -20,7 +22,6 @@ import math
 import sys
 import time
 from contextlib import contextmanager
-from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Final
 
 from xac1_proto import spec
@@ -185,106 +186,158 @@ def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
 
 def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
             summaries: list[dict[str, Any]] | None = None) -> int:
-    from .analyzer import Analyzer
+    """The analyzer over the whole capture, its records to the outputs, then the summary and the exit
+    status (module docstring)."""
     from .io.base import WrongFormat
-    from .records import CleanExchange, Tally
-    from .view import make_view
+    from .report import ReportError
+
+    analyzer = _analyzer(args)
+    try:
+        outputs = _Outputs(capture, args, one_sided, analyzer.conversation.no_answer_timeout)
+    except ReportError as exc:
+        return _error(str(exc))
+    try:
+        with _progress(capture) as progress:
+            _read_all(capture, analyzer, outputs, progress)
+    except WrongFormat:
+        return _wrong_format(capture)
+    finally:
+        outputs.view.flush()  # the lines decoded so far are out, however the loop ended (Ctrl-C included)
+    outputs.end(analyzer.close())
+    summary = _summary(analyzer, outputs, capture.report)
+    _publish(summary, capture, outputs, summaries)
+    return _exit_status(summary, analyzer, capture)
+
+
+def _analyzer(args: argparse.Namespace) -> Any:
+    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``)."""
+    from .analyzer import Analyzer
 
     options: dict[str, Any] = {}
     if args.no_answer_timeout is not None:
         options["no_answer_timeout"] = args.no_answer_timeout
     if args.storm_limit is not None:
         options["storm_limit"] = args.storm_limit
-    analyzer = Analyzer(**options)
-    tally = Tally() if one_sided else None
-    annotate = _annotated(args, capture)
-    html_report = None
-    if args.report:
-        from .report import ReportError, SessionReport
-        try:
-            html_report = SessionReport.open(args.report, [(s.name, capture.format) for s in capture.sources],
-                                             analyzer.conversation.no_answer_timeout)
-        except ReportError as exc:
-            return _error(str(exc))
-    view = make_view("text" if args.format == "summary" else args.format, sys.stdout, args.color, live=False)
-    show = _Filter(args.only_violations, args.header) if args.format != "summary" else None
-    report = capture.report
-    violations = 0
+    return Analyzer(**options)
 
-    every = show is not None and not args.only_violations and not args.header  # every record shown
-    plain = every and tally is None and html_report is None
-    lean = plain and args.format == "jsonl"  # exchanges from the memo as CleanExchange: no records made
 
-    def emit(records: list[Any]) -> None:
-        nonlocal violations
-        if plain:  # the usual decode: every record to the view, in one call
-            violations += sum(1 for r in records if type(r) is not CleanExchange and r.violations)
-            view.write_many(records)
+class _Outputs:
+    """Where a decode's records go: the view (through ``--only-violations`` and ``--header``), the
+    one-direction tally, the HTML report and the annotated pcapng. ``wants_records``: False when only
+    the summary is shown (the analyzer then counts its verdicts and makes no record)."""
+
+    def __init__(self, capture: Capture, args: argparse.Namespace, one_sided: bool, timeout: float) -> None:
+        from .records import Tally
+        from .view import make_view
+
+        self.tally = Tally() if one_sided else None
+        self.annotate = _annotated(args, capture)
+        self.html_report = None
+        if args.report:
+            from .report import SessionReport
+            files = [(s.name, capture.format) for s in capture.sources]
+            self.html_report = SessionReport.open(args.report, files, timeout)
+        summary_only = args.format == "summary"
+        self.view = make_view("text" if summary_only else args.format, sys.stdout, args.color, live=False)
+        self.show = None if summary_only else _Filter(args.only_violations, args.header)
+        # every record to the view, in one call a batch
+        self.plain = (not summary_only and not args.only_violations and not args.header and self.tally is None
+                      and self.html_report is None)
+        self.wants_records = not (summary_only and self.tally is None and self.html_report is None
+                                  and self.annotate is None)
+
+    def emit(self, records: list[Any]) -> None:
+        """Records to every output that takes them."""
+        if self.plain:
+            self.view.write_many(records)
             return
+        tally, show, html_report, view = self.tally, self.show, self.html_report, self.view
         for record in records:
             if tally is not None:
                 record = _one_sided(record)
                 if record is None:
                     continue
                 tally.add(record)
-            violations += bool(record.violations)
             if show is not None and show(record):
                 view.write(record)
             if html_report is not None:
                 html_report.add(record)
 
+    def end(self, records: list[Any]) -> None:
+        """The records of the end of the data; the annotated pcapng is closed with them."""
+        if self.annotate is not None:
+            self.annotate.verdicts(records)
+            self.annotate.close()
+        self.emit(records)
+        self.view.flush()
+
+
+def _read_all(capture: Capture, analyzer: Any, outputs: _Outputs, progress: _Progress | _NoProgress) -> None:
+    """Every chunk of the capture through the analyzer: one at a time with its records when annotating
+    (each chunk written with them), else in batches (``Analyzer.feed_many``)."""
+    report = capture.report
+    if outputs.annotate is not None:
+        for chunk in capture:
+            report.give_up_after = None  # data came: the format reads
+            records = analyzer.feed(chunk)
+            outputs.annotate.write(chunk, records)
+            outputs.emit(records)
+            progress.update()
+        return
+    chunks = _data_came(capture, report)
+    if not outputs.wants_records:
+        while analyzer.feed_many(chunks):
+            progress.update()
+        return
+    pending: list[Any] = []
     try:
-        with _progress(capture) as progress:
-            if annotate is not None:  # each chunk written with its records
-                for chunk in capture:
-                    report.give_up_after = None  # data came: the format reads
-                    records = analyzer.feed(chunk)
-                    annotate.write(chunk, records)
-                    emit(records)
-                    progress.update()
-            else:  # in bulk; clean frame records only where something shows or counts them
-                shows_clean = show is not None and not (args.only_violations and not args.header)
-                clean = shows_clean or html_report is not None or tally is not None
-                chunks = _data_came(capture, report)
-                pending: list[Any] = []
-                try:
-                    while analyzer.feed_many(chunks, pending, clean, lean=lean):
-                        emit(pending)
-                        pending = []
-                        progress.update()
-                except BaseException:  # Ctrl-C too: the records of every chunk taken are shown
-                    emit(pending)
-                    raise
-    except WrongFormat:
-        _print_problems(report, WRONG_FORMAT_SHOWN)
-        looks = f" ({report.looks_like})" if report.looks_like else ""
-        return _error(f"{WRONG_FORMAT_LIMIT} problems and no line data at the start: this is not a "
-                      f"{capture.format} capture{looks}; leave --input-format out to detect the format")
-    finally:
-        view.flush()  # the lines decoded so far are out, however the loop ended (Ctrl-C included)
-    records = analyzer.close()
-    if annotate is not None:
-        annotate.verdicts(records)
-        annotate.close()
-    emit(records)
-    view.flush()
-    summary = tally.summary() if tally is not None else analyzer.summary()
+        while analyzer.feed_many(chunks, pending):
+            outputs.emit(pending)
+            pending = []
+            progress.update()
+    except BaseException:  # Ctrl-C too: the records of every chunk taken are shown
+        outputs.emit(pending)
+        raise
+
+
+def _wrong_format(capture: Capture) -> int:
+    """``--input-format`` named a format the file is not (problems and no data at the start)."""
+    report = capture.report
+    _print_problems(report, WRONG_FORMAT_SHOWN)
+    looks = f" ({report.looks_like})" if report.looks_like else ""
+    return _error(f"{WRONG_FORMAT_LIMIT} problems and no line data at the start: this is not a "
+                  f"{capture.format} capture{looks}; leave --input-format out to detect the format")
+
+
+def _summary(analyzer: Any, outputs: _Outputs, report: Report) -> dict[str, Any]:
+    """The summary record, with the capture's problems and notes."""
+    summary: dict[str, Any] = outputs.tally.summary() if outputs.tally is not None else analyzer.summary()
     if report.total_problems:
         summary["problems"] = report.total_problems
         summary["problem_messages"] = report.problems[:SUMMARY_PROBLEMS]
     if report.notes:
         summary["notes"] = list(report.notes)
+    return summary
+
+
+def _publish(summary: dict[str, Any], capture: Capture, outputs: _Outputs,
+             summaries: list[dict[str, Any]] | None) -> None:
+    """The summary to the view (or to ``summaries``), the HTML report written, notes and problems said."""
     if summaries is None:
-        view.summary(summary)
+        outputs.view.summary(summary)
     else:
         summaries.append({"format": capture.format, **summary})
-    if html_report is not None:
-        print(f"xac1 decode: report written to {html_report.write(summary)}", file=sys.stderr)
-    empty = not (analyzer.bytes_in("host") or analyzer.bytes_in("device"))
-    for note in report.notes:
+    if outputs.html_report is not None:
+        print(f"xac1 decode: report written to {outputs.html_report.write(summary)}", file=sys.stderr)
+    for note in capture.report.notes:
         print(f"xac1 decode: note: {note}", file=sys.stderr)
-    _print_problems(report)
-    if empty:
+    _print_problems(capture.report)
+
+
+def _exit_status(summary: dict[str, Any], analyzer: Any, capture: Capture) -> int:
+    """2 when the capture held no line data, 1 with violations or problems, else 0."""
+    report = capture.report
+    if not (analyzer.bytes_in("host") or analyzer.bytes_in("device")):
         names = ", ".join(s.name for s in capture.sources)
         looks = f" ({report.looks_like})" if report.looks_like else ""
         print(f"xac1 decode: {names}: no line data found in this {capture.format} capture: nothing to "
@@ -292,7 +345,7 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
         return 2
     if report.total_problems or report.unread_bytes or report.unread_lines:
         print(f"xac1 decode: {capture.format}: {report.summary()}; the rest was decoded", file=sys.stderr)
-    return 1 if violations or report.total_problems else 0
+    return 1 if summary["violations"] or report.total_problems else 0
 
 
 @contextmanager
@@ -338,7 +391,7 @@ def _one_sided(record: Any) -> Any:
     changes: dict[str, Any] = {"violations": keep, "details": details}
     if record.type == "frame":
         changes.update(reply_to=None, latency_s=None)
-    return replace(record, **changes)
+    return record._replace(**changes)
 
 
 class _Filter:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import replace
 
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 
@@ -45,7 +44,7 @@ class CausalOrder:
         if chunk.dir == HOST:
             self._host_out = now
         if chunk.t is not None and self._last_t is not None and chunk.t < self._last_t:
-            chunk = replace(chunk, t=self._last_t)
+            chunk = Chunk(self._last_t, chunk.dir, chunk.data, chunk.error)
         if chunk.t is not None:
             self._last_t = chunk.t
         self.sink(chunk)
@@ -107,6 +106,6 @@ def _lines(chunk: Chunk) -> list[Chunk]:
     out, data = [], chunk.data
     while data:
         cut = data.find(b"\n") + 1 or len(data)
-        out.append(replace(chunk, data=data[:cut]))
+        out.append(Chunk(chunk.t, chunk.dir, data[:cut], chunk.error))
         data = data[cut:]
     return out

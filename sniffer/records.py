@@ -13,15 +13,21 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from collections import Counter
-from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
 
 _FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> its field names (Frame.fields' order)
+
+
+def frame_fields(frame: Frame) -> dict[str, Any]:
+    """``frame.fields()``, the class's field names looked up once."""
+    names = _FIELD_NAMES.get(type(frame))
+    if names is None:
+        names = _FIELD_NAMES[type(frame)] = tuple(f.name for f in dataclasses.fields(frame))
+    return {name: getattr(frame, name) for name in names}
 
 
 def _round_t(t: float | None) -> float | None:
@@ -42,13 +48,13 @@ def _with_notes(out: dict[str, Any], details: tuple[str, ...],
     return out
 
 
-@dataclass(frozen=True)
-class FrameRecord:
+class FrameRecord(NamedTuple):
     """A frame seen on one line. ``i``: position among frame and junk records; ``t``: time of its first
     byte; ``header``: the spec header it was read as (a letter O read as the digit), None when unknown;
     ``frame``: the lenient decode (None when a field could not be read); ``violations``: codes, each once;
     ``details``: one human sentence per violation; ``reply_to``/``latency_ms``: on device frames, the
-    command answered and the time from its last byte to this frame's first byte."""
+    command answered and the time from its last byte to this frame's first byte; ``window_s``: on host
+    frames, the answer window the rulebook gave it (not in JSON)."""
 
     i: int
     t: float | None
@@ -63,20 +69,17 @@ class FrameRecord:
     t_last: float | None = None
     line_errors: tuple[str, ...] = ()
     sides: tuple[spec.Side, ...] = ()
-    window_s: float | None = None  # host frames: the answer window the rulebook gave it (not in JSON)
+    window_s: float | None = None
 
-    type = "frame"
+    @property
+    def type(self) -> str:
+        return "frame"
 
     @property
     def fields(self) -> dict[str, Any] | None:
-        """``frame.fields()``: the field values by name in wire order (names looked up once a class)."""
+        """``frame.fields()``: the field values by name in wire order."""
         frame = self.frame
-        if frame is None:
-            return None
-        names = _FIELD_NAMES.get(type(frame))
-        if names is None:
-            names = _FIELD_NAMES[type(frame)] = tuple(f.name for f in dataclasses.fields(frame))
-        return {name: getattr(frame, name) for name in names}
+        return None if frame is None else frame_fields(frame)
 
     @property
     def latency_ms(self) -> float | None:
@@ -98,8 +101,7 @@ class FrameRecord:
 CAPTURE_ENDED = "capture-ended"  # JunkRecord.reason: the data ended inside this frame (no violation)
 
 
-@dataclass(frozen=True)
-class JunkRecord:
+class JunkRecord(NamedTuple):
     """Bytes that form no frame (the ``garbage`` violation). ``reason`` is the framer's:
     ``no-frame-start``, ``truncated``, ``overflow``, ``flushed``; or ``capture-ended``: the data (a capture
     file, a proxy stopped) ended inside this frame, which is no one's fault: no violation, and on device
@@ -117,7 +119,9 @@ class JunkRecord:
     reply_to: int | None = None  # device junk inside a command's answer window: its garbled answer
     latency_s: float | None = None
 
-    type = "junk"
+    @property
+    def type(self) -> str:
+        return "junk"
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"type": "junk", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
@@ -132,8 +136,7 @@ class JunkRecord:
         return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
-@dataclass(frozen=True)
-class TimeoutRecord:
+class TimeoutRecord(NamedTuple):
     """A command that got no answer in time (``no-answer``), reported when its deadline passed.
     ``command``: the command's ``i``; ``t``: the deadline (None when the source has no time and the
     verdict came at the end of the data); ``waited_s``: the timeout applied (None without time)."""
@@ -147,7 +150,9 @@ class TimeoutRecord:
     dir: Direction = "host"
     sides: tuple[spec.Side, ...] = ()
 
-    type = "timeout"
+    @property
+    def type(self) -> str:
+        return "timeout"
 
     def to_dict(self) -> dict[str, Any]:
         return {"type": "timeout", "t": _round_t(self.t), "dir": self.dir, "command": self.command,
@@ -161,28 +166,8 @@ class TimeoutRecord:
 Record = FrameRecord | JunkRecord | TimeoutRecord
 
 
-class CleanExchange(NamedTuple):
-    """A clean command and its clean answer, answered from the fast lane's memo, that
-    ``Analyzer.feed_many(lean=True)`` gives instead of their two records (an output of JSON lines needs
-    none: ``JsonlView`` prints them from the memo's records): ``host`` and ``answer`` are the records they
-    would be made from, the rest what differs; ``records()`` makes the two records."""
-
-    host: FrameRecord
-    answer: FrameRecord
-    i: int
-    t: float | None
-    t_answer: float | None
-    latency_s: float | None
-
-    def records(self) -> tuple[FrameRecord, FrameRecord]:
-        """The two records ``Analyzer.feed`` gives for this exchange."""
-        i = self.i
-        return (dataclasses.replace(self.host, i=i, t=self.t, t_last=self.t, reply_to=None, latency_s=None),
-                dataclasses.replace(self.answer, i=i + 1, t=self.t_answer, t_last=self.t_answer, reply_to=i,
-                                    latency_s=self.latency_s))
-
-
 _MAX_LATENCY_S = 1e6  # a latency beyond this comes from damaged times and is not counted
+_US_PER_S = 1e6
 
 
 def sides_of(record: Record) -> tuple[spec.Side, ...]:
@@ -200,19 +185,33 @@ def _sides(record: Record) -> list[str]:
 _MAX_WAITING = 4096  # commands the tally remembers while they wait for an answer
 
 
-@dataclass
 class LatencyStats:
     """Count, min, median and max of latencies in bounded memory: a histogram of whole microseconds (the
-    summary shows 1 us, so the median is exact), whose size grows with distinct values, not answers."""
+    summary shows 1 us, so the median is exact), whose size grows with distinct values, not answers.
+    Latencies wait in a short list and go into the histogram ``FOLD`` at a time (in one C-level pass)."""
 
-    n: int = 0
-    _us: Counter[int] = field(default_factory=Counter)
+    __slots__ = ("n", "_us", "_waiting")
+
+    FOLD = 4096
+
+    def __init__(self) -> None:
+        self.n = 0
+        self._us: Counter[int] = Counter()
+        self._waiting: list[float] = []
 
     def add(self, seconds: float) -> None:
-        if not math.isfinite(seconds) or abs(seconds) > _MAX_LATENCY_S:
-            return  # a damaged time, not a latency
+        if not -_MAX_LATENCY_S <= seconds <= _MAX_LATENCY_S:
+            return  # a damaged time (NaN, infinite, absurd), not a latency
         self.n += 1
-        self._us[round(seconds * 1e6)] += 1
+        waiting = self._waiting
+        waiting.append(seconds)
+        if len(waiting) >= self.FOLD:
+            self._fold()
+
+    def _fold(self) -> None:
+        """The waiting latencies into the histogram: ``round(seconds * 1e6)`` each."""
+        self._us.update(map(round, map(_US_PER_S.__mul__, self._waiting)))
+        self._waiting.clear()
 
     def _nth(self, k: int, keys: list[int]) -> int:
         """The k-th smallest value (0-based), in microseconds."""
@@ -224,61 +223,90 @@ class LatencyStats:
         raise IndexError(k)
 
     def stats_ms(self) -> dict[str, float | int]:
+        self._fold()
         keys = sorted(self._us)
         mid = (self._nth((self.n - 1) // 2, keys) + self._nth(self.n // 2, keys)) / 2
         return {"n": self.n, "min": keys[0] / 1000, "median": round(mid / 1000, 3), "max": keys[-1] / 1000}
 
 
-@dataclass
-class Tally:
-    """Counts records as they go by; ``summary()`` is the schema's last line."""
+# what ``Tally.count`` counts of a frame, junk run or missed answer (see there)
+Row = tuple[str, str, int, "str | None", "int | None", "int | None", "float | None", tuple[str, ...],
+            tuple[str, ...], bool]
 
-    frames: Counter[str] = field(default_factory=Counter)  # by direction
-    junk: int = 0
-    bytes: Counter[str] = field(default_factory=Counter)  # by direction, frames and junk
-    violations: Counter[str] = field(default_factory=Counter)
-    by_side: dict[str, Counter[str]] = field(default_factory=lambda: {"host": Counter(), "device": Counter()})
-    commands: Counter[str] = field(default_factory=Counter)  # host frames by header ("?" unknown)
-    answers: Counter[str] = field(default_factory=Counter)  # device frames by header
-    latencies: dict[str, LatencyStats] = field(default_factory=dict)  # by command header
-    line_errors: int = 0  # frame and junk records carrying a line error
-    unanswered: int = 0  # commands still waiting at the end with no verdict (capture cut short)
-    _headers: dict[int, str] = field(default_factory=dict)  # host frame i -> header
+
+class Tally:
+    """Counts what goes by (records through ``add``; the analyzer's verdicts as rows through ``count``,
+    without records); ``summary()`` is the schema's last line."""
+
+    def __init__(self) -> None:
+        self.junk_runs = 0
+        self.bytes: Counter[str] = Counter()  # by direction, frames and junk
+        self.codes: Counter[str] = Counter()
+        self.by_side: dict[str, Counter[str]] = {"host": Counter(), "device": Counter()}
+        self.commands: Counter[str] = Counter()  # host frames by header ("?" unknown)
+        self.answers: Counter[str] = Counter()  # device frames by header
+        self.latencies: dict[str, LatencyStats] = {}  # by command header
+        self.line_errors = 0  # frame and junk records carrying a line error
+        self.unanswered = 0  # commands still waiting at the end with no verdict (capture cut short)
+        self._headers: dict[int, str] = {}  # host frame i -> header, while it waits for its answer
 
     def add(self, record: Record) -> None:
-        if record.violations:  # most records have none: skip the counters' per-call overhead
-            self.violations.update(record.violations)
-            for code, side in zip(record.violations, sides_of(record), strict=True):
-                self.by_side[side][code] += 1
-        if isinstance(record, FrameRecord):
-            self.line_errors += bool(record.line_errors)
-            self.add_clean_frame(record)
-        elif isinstance(record, JunkRecord):
-            self.junk += record.reason != CAPTURE_ENDED
-            self.bytes[record.dir] += len(record.raw)
-            self.line_errors += bool(record.line_errors)
-
-    def add_clean_frame(self, record: FrameRecord) -> None:
-        """``add`` for a frame record with no violation and no line error (the analyzer's fast lane
-        gives only those; ``add`` counts every frame record's frame, header and latency here)."""
-        direction = record.dir
-        self.frames[direction] += 1
-        self.bytes[direction] += len(record.raw)
-        header = record.header or "?"
-        if direction == "host":
-            self.commands[header] += 1
-            self._headers[record.i] = header
-            if len(self._headers) > _MAX_WAITING:  # commands never answered: forget the oldest
-                del self._headers[next(iter(self._headers))]
+        """Count one record."""
+        codes = tuple(record.violations)
+        sides = sides_of(record) if codes else ()
+        if isinstance(record, TimeoutRecord):
+            self.count([("no-answer", record.dir, 0, record.header, None, record.command, None, codes, sides,
+                         False)])
             return
-        self.answers[header] += 1
-        if record.reply_to is not None:
-            command = self._headers.pop(record.reply_to, "?")
-            if record.latency_s is not None:
-                stats = self.latencies.get(command)
-                if stats is None:
-                    stats = self.latencies[command] = LatencyStats()
-                stats.add(record.latency_s)
+        if isinstance(record, FrameRecord):
+            kind, header = "host-frame", record.header
+        else:
+            kind, header = ("cut" if record.reason == CAPTURE_ENDED else "host-junk"), None
+        self.count([(kind, record.dir, len(record.raw), header, record.i, record.reply_to,
+                     record.latency_s, codes, sides, bool(record.line_errors))])
+
+    def count(self, rows: list[Row]) -> None:
+        """Count frames, junk runs, frames the data ended inside and missed answers (``Row``: kind (a
+        ``Verdict.kind``), sender, bytes, header, number, the
+        line answered, latency, violation codes and their sides, a line error on its bytes): commands by
+        header, answers by header with their latency by the command's header, violations by side."""
+        commands, answers, sizes, headers = self.commands, self.answers, self.bytes, self._headers
+        latencies = self.latencies
+        for kind, sender, size, header, i, reply_to, latency_s, codes, sides, line_error in rows:
+            if codes:
+                self.codes.update(codes)
+                for code, side in zip(codes, sides, strict=True):
+                    self.by_side[side][code] += 1
+            if kind == "no-answer":
+                continue
+            sizes[sender] += size
+            self.line_errors += line_error
+            if kind == "host-junk" or kind == "device-junk":
+                self.junk_runs += 1
+                continue
+            if kind == "cut":  # the data ended inside this frame: its bytes, no junk run
+                continue
+            if not header:
+                header = "?"
+            if sender == "host":
+                commands[header] += 1
+                headers[i] = header  # type: ignore[index]
+                if len(headers) > _MAX_WAITING:  # commands never answered: forget the oldest
+                    del headers[next(iter(headers))]
+                continue
+            answers[header] += 1
+            if reply_to is not None:
+                command = headers.pop(reply_to, "?")
+                if latency_s is not None:
+                    stats = latencies.get(command)
+                    if stats is None:
+                        stats = latencies[command] = LatencyStats()
+                    stats.add(latency_s)
+
+    @property
+    def frames(self) -> dict[str, int]:
+        """Frames by direction."""
+        return {"host": sum(self.commands.values()), "device": sum(self.answers.values())}
 
     def latency_stats(self) -> dict[str, dict[str, float | int]]:
         """Per command header: count, min, median, max latency in ms."""
@@ -286,11 +314,11 @@ class Tally:
                 if self.latencies[header].n}
 
     def summary(self) -> dict[str, Any]:
-        ordered = sorted(self.violations.items(), key=lambda kv: list(spec.VIOLATIONS).index(kv[0])
+        ordered = sorted(self.codes.items(), key=lambda kv: list(spec.VIOLATIONS).index(kv[0])
                          if kv[0] in spec.VIOLATIONS else len(spec.VIOLATIONS))
         return {"type": "summary",
                 "frames": {"host": self.frames["host"], "device": self.frames["device"]},
-                "junk": self.junk,
+                "junk": self.junk_runs,
                 "violations": dict(ordered),
                 "by_side": {side: {c: self.by_side[side][c] for c, _ in ordered if self.by_side[side][c]}
                             for side in ("host", "device")},

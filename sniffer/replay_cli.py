@@ -138,7 +138,7 @@ def _dry_run(args: argparse.Namespace, settings: Settings, script: Script) -> in
     from .analyzer import Analyzer
     from .replay_guard import MotionGuard
 
-    analyzer = Analyzer(fast=False)
+    analyzer = Analyzer()
     guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge)
     out = _Output(args, sys.stdout)
     skipped = 0
@@ -185,7 +185,7 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
                   file=sys.stderr)
             return EXIT_EARLY
         end.begin()
-        analyzer = Analyzer(no_answer_timeout=settings.timeout, fast=False)
+        analyzer = Analyzer(no_answer_timeout=settings.timeout)
         guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge,
                             {n: p.pos for n, p in snap.points.items()}, homed=snap.position is not None)
         out = _Output(args, sys.stdout)

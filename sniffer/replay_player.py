@@ -79,7 +79,7 @@ class Player:
         self.stop = stop
         self.on_result = on_result
         self.clock = clock
-        self.analyzer = analyzer or Analyzer(fast=False)
+        self.analyzer = analyzer or Analyzer()
         self.results = [LineResult(line) for line in script.lines]
         self.records: list[Record] = []
         self.stopped = False  # the device stopped answering

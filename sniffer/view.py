@@ -8,22 +8,20 @@ violation with its docs/protocol.md meaning and the detail; errors in red, notic
 when the stream is a terminal (``color`` forces it). ``xac1 sniff``, ``xac1 proxy`` and ``xac1 decode``
 share these.
 
-Speed: most records of a capture repeat a few contents (the analyzer's fast lane clones a few template
-records, sharing their frame, bytes and verdicts) and differ only in their numbers (``i``, ``t``,
-``reply_to``, the latency). For frame records both views keep, per distinct content (the frame by
-identity, the other fields by value; ``_Templates``), what they printed of it with the numbers left out,
-and format only the numbers per record, exactly as ``json.dumps`` and the text line do
-(tests/test_view_fast.py). Other records, and colour, take the general path.
+Speed: a line is formatted straight from the record's fields (a frame record's JSON line by hand, exactly
+as ``json.dumps`` of its ``to_dict`` reads; tests/test_view_fast.py), the clock of the last whole second
+remembered (``_Clock``), and offline lines are written in batches (``_Lines``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import json
 from collections.abc import Callable, Iterable
 from math import modf
-from operator import itemgetter
-from typing import IO, Any, Generic, Protocol, TypeVar
+from operator import attrgetter
+from typing import IO, Any, Protocol
 
 from rich.console import Console
 from rich.markup import escape
@@ -33,11 +31,11 @@ from xac1_proto import spec
 
 from .records import (
     CAPTURE_ENDED,
-    CleanExchange,
     FrameRecord,
     JunkRecord,
     Record,
     TimeoutRecord,
+    frame_fields,
     sides_of,
     summary_json,
 )
@@ -47,18 +45,13 @@ _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
 # byte -> how it is shown: printable ASCII as is, CR LF and backslash escaped, the rest \xNN
 _SHOWN = {b: _ESCAPES.get(b) or (chr(b) if 0x20 <= b < 0x7F else f"\\x{b:02X}") for b in range(256)}
 BATCH_LINES = 512  # an offline view writes this many lines at a time (one write, not one per line)
-TEMPLATES = 2048  # distinct frame record contents a view remembers (``_Templates``)
 
 Part = tuple[str, str]  # a piece of a line and its rich style ("" for none)
-T = TypeVar("T")
 
 # what ``Record.to_json`` does (``json.dumps(to_dict(), separators=(",", ":"))``), the encoder made once
 _ENCODE: Callable[[Any], str] = json.JSONEncoder(separators=(",", ":")).encode
 _RECORD_TYPES = (FrameRecord, JunkRecord, TimeoutRecord)
-_NUMBERS = ("i", "t", "reply_to", "latency_ms")  # a frame record's JSON keys that vary record by record
 _MS = tuple(f"{ms:03d}" for ms in range(1000))
-# what a frame record's output depends on but its numbers and its frame (``_Templates``)
-_STATIC = itemgetter("dir", "raw", "header", "violations", "details", "line_errors", "sides")
 
 
 class View(Protocol):
@@ -149,6 +142,58 @@ def _json_line(record: Record) -> str:
     return record.to_json() + "\n"
 
 
+_HEADER_JSON = {h: _ENCODE(h) for role in spec.ROLES for h in spec.HEADERS[role]}
+# frame class -> its fields as a JSON object with %d for each value (every field a number), or None
+_FIELDS_FORMAT: dict[type, tuple[str, Callable[[Any], tuple[Any, ...]]] | None] = {}
+_INT = {int}
+
+
+def _fields_format(cls: type) -> tuple[str, Callable[[Any], tuple[Any, ...]]] | None:
+    """A frame class's fields as a JSON object with ``%d`` for each value, and the getter of the values
+    (every field a number); None for a class with a text field."""
+    names = tuple(f.name for f in dataclasses.fields(cls))
+    if not all(spec.FIELDS[name].radix and not spec.FIELDS[name].text for name in names):
+        return None
+    get = attrgetter(*names) if len(names) > 1 else (lambda frame: tuple(getattr(frame, n) for n in names))
+    return "{" + ",".join(f'"{name}":%d' for name in names) + "}", get
+
+
+def _fields_json(frame: Any) -> str:
+    """``json.dumps(frame_fields(frame))``: a frame whose fields are all ints through its class's format."""
+    cls = type(frame)
+    if cls not in _FIELDS_FORMAT:
+        _FIELDS_FORMAT[cls] = _fields_format(cls)
+    shape = _FIELDS_FORMAT[cls]
+    if shape is not None:
+        fmt, get = shape
+        values = get(frame)
+        if set(map(type, values)) <= _INT:
+            return fmt % values
+    return _ENCODE(frame_fields(frame))
+
+
+_DIR_JSON = {"host": '"host"', "device": '"device"'}
+
+
+def _frame_json(record: FrameRecord) -> str:
+    """``record.to_json()`` and a newline for a frame record, written out here for the usual record (no
+    violation, no line error, usual types); any other through ``to_dict``."""
+    (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last, line_errors,
+     sides, _window) = record
+    shown_dir = _DIR_JSON.get(direction)
+    if (violations or details or line_errors or sides or type(i) is not int or type(raw) is not bytes
+            or shown_dir is None):
+        return _json_line(record)
+    shown_header = "null" if header is None else _HEADER_JSON.get(header) or _ENCODE(header)
+    fields = "null" if frame is None else _fields_json(frame)
+    head = (f'{{"type":"frame","i":{i},"t":{_json_t(t)},"dir":{shown_dir},"raw":"{raw.hex()}",'
+            f'"header":{shown_header},"fields":{fields},"violations":[],"sides":[]')
+    if direction == "host":
+        return head + "}\n"
+    shown_reply = str(reply_to) if type(reply_to) is int else _json_number(reply_to)
+    return f'{head},"reply_to":{shown_reply},"latency_ms":{_json_ms(latency)}}}\n'
+
+
 def _json_ms(seconds: Any) -> str:
     """``json.dumps(_ms(seconds))``: ``round(seconds * 1000.0, 3)`` (``JsonlView.line`` inlines the usual
     case)."""
@@ -160,59 +205,6 @@ def _json_ms(seconds: Any) -> str:
     return _json_number(round(ms, 3))
 
 
-_ONCE: Any = object()  # a content seen once: no template made yet
-
-
-class _Templates(Generic[T]):
-    """What a view made (``make(record)``) of each distinct content of frame records but their numbers
-    (``i``, ``t``, ``reply_to``, the latency), the oldest dropped first beyond ``size``. Keyed on the other
-    fields' values (``_STATIC``), the frame compared by identity: frames are immutable and the records of
-    a capture share a few (equal frames may still print differently: a field 1 or True). An entry keeps
-    one frame, the latest, and holds it. A template is made the second time a content comes: records
-    that never repeat (a frame with violations is decoded anew each time) cost a look-up, not a make."""
-
-    __slots__ = ("make", "size", "_entries")
-
-    def __init__(self, make: Callable[[FrameRecord], T | None], size: int = TEMPLATES) -> None:
-        self.make = make
-        self.size = size
-        self._entries: dict[tuple[Any, ...], tuple[Any, Any]] = {}  # key -> (frame, template or _ONCE)
-
-    def get(self, record: FrameRecord) -> T | None:
-        """The template of the record's content; None when it has none (yet: first seen; or ``make``
-        gave none or raised; or a field cannot be hashed): the view's general path then does, and raises,
-        what it always did."""
-        values = record.__dict__
-        try:
-            key = _STATIC(values)
-            found = self._entries.get(key)
-            frame = values["frame"]
-        except Exception:
-            return None
-        if found is None or found[0] is not frame:
-            self._keep(key, frame, _ONCE)
-            return None
-        made: T | None = found[1]
-        if made is not _ONCE:
-            return made
-        try:
-            made = self.make(record)
-        except Exception:
-            return None
-        self._keep(key, frame, made)
-        return made
-
-    def _keep(self, key: tuple[Any, ...], frame: Any, made: Any) -> None:
-        entries = self._entries
-        entries.pop(key, None)  # another frame for the same content: the latest is kept
-        if len(entries) >= self.size:
-            del entries[next(iter(entries))]
-        entries[key] = (frame, made)
-
-    def __len__(self) -> int:
-        return len(self._entries)
-
-
 class _Lines:
     """Where a view's lines go: straight to the stream (``live``, or a terminal), or gathered and written
     ``BATCH_LINES`` at a time (an offline decode into a file or a pipe: one write per batch instead of
@@ -221,20 +213,20 @@ class _Lines:
     def __init__(self, stream: IO[str], live: bool) -> None:
         self.stream = stream
         self.batched = not live and not _is_terminal(stream)
-        self._pending: list[str] = []
+        self.pending: list[str] = []  # lines gathered, not yet written
 
     def add(self, line: str) -> None:
         if not self.batched:
             self.stream.write(line)
             return
-        self._pending.append(line)
-        if len(self._pending) >= BATCH_LINES:
+        self.pending.append(line)
+        if len(self.pending) >= BATCH_LINES:
             self.write_pending()
 
     def write_pending(self) -> None:
-        if self._pending:
-            self.stream.write("".join(self._pending))
-            self._pending.clear()
+        if self.pending:
+            self.stream.write("".join(self.pending))
+            self.pending.clear()
 
 
 def _is_terminal(stream: IO[str]) -> bool:
@@ -244,120 +236,39 @@ def _is_terminal(stream: IO[str]) -> bool:
         return False
 
 
-def _json_template(record: FrameRecord) -> tuple[str, ...] | None:
-    """A frame record's JSON line cut around its numbers (``to_dict``'s ``i`` and ``t``, then on device
-    frames ``reply_to`` and ``latency_ms``, found in its output): 3 or 5 pieces; None when it cannot be
-    cut so."""
-    out = record.to_dict()
-    numbers = tuple(key for key in out if key in _NUMBERS)
-    if numbers not in (_NUMBERS[:2], _NUMBERS):
-        return None
-    for key in numbers:
-        out[key] = f"\0{key}\0"  # a string no other value of the line encodes to (checked below)
-    line = _ENCODE(out) + "\n"
-    marks = [_ENCODE(f"\0{key}\0") for key in numbers]
-    if any(line.count(mark) != 1 for mark in marks):
-        return None
-    pieces = [line]
-    for mark in marks:
-        pieces[-1:] = pieces[-1].split(mark)
-    return tuple(pieces)
-
-
 class JsonlView:
     """One JSON object a line (the docs/output.md schema), flushed as it goes when ``live`` (the sniffer);
     an offline decode (``live=False``) writes lines in batches and flushes after the summary. A line is
-    exactly ``record.to_json()``; frame records' from a template of their content (module docstring)."""
+    exactly ``record.to_json()``."""
 
     def __init__(self, stream: IO[str], live: bool = True) -> None:
         self.stream = stream
         self.live = live
         self._lines = _Lines(stream, live)
-        self._templates: _Templates[tuple[str, ...]] = _Templates(_json_template)
-        self._entries = self._templates._entries
-        # the fast lane's memoised records (``CleanExchange``) by identity: (the record, its template)
-        self._memoised: dict[int, tuple[FrameRecord, tuple[str, ...] | None]] = {}
 
     def write(self, record: Record) -> None:
         self._lines.add(self.line(record))
         if self.live:
             self.stream.flush()
 
-    def write_many(self, records: Iterable[Record | CleanExchange]) -> None:
-        """``write`` each record, and the two records of each ``CleanExchange`` (offline: no call per line
-        on the way)."""
+    def write_many(self, records: Iterable[Record]) -> None:
+        """``write`` each record (offline: no call per line on the way)."""
         if self.live or not self._lines.batched:
             for record in records:
-                for one in record.records() if type(record) is CleanExchange else (record,):
-                    self.write(one)  # type: ignore[arg-type]
+                self.write(record)
             return
-        line, exchange, pending, lines = self.line, self._exchange, self._lines._pending, self._lines
+        line, lines = self.line, self._lines
+        pending = lines.pending
         for record in records:
-            if type(record) is CleanExchange:
-                pending += exchange(record)
-            else:
-                pending.append(line(record))  # type: ignore[arg-type]
+            pending.append(line(record))
             if len(pending) >= BATCH_LINES:
                 lines.write_pending()
 
-    def _exchange(self, exchange: CleanExchange) -> tuple[str, ...]:
-        """The lines of a ``CleanExchange``'s two records, from the templates of the memo's records (kept
-        by identity: a memoised record is the same object every time)."""
-        host, answer, i, t, t_answer, latency = exchange
-        memoised = self._memoised
-        found = memoised.get(id(host))
-        host_pieces = found[1] if found is not None and found[0] is host else self._memoise(host)
-        found = memoised.get(id(answer))
-        pieces = found[1] if found is not None and found[0] is answer else self._memoise(answer)
-        if host_pieces is None or pieces is None or len(host_pieces) != 3 or len(pieces) != 5:
-            return tuple(self.line(record) for record in exchange.records())
-        return ("".join((host_pieces[0], str(i), host_pieces[1], _json_t(t), host_pieces[2])),
-                "".join((pieces[0], str(i + 1), pieces[1], _json_t(t_answer), pieces[2], str(i), pieces[3],
-                         _json_ms(latency), pieces[4])))
-
-    def _memoise(self, record: FrameRecord) -> tuple[str, ...] | None:
-        """The template of a memoised record (kept; the oldest dropped beyond ``TEMPLATES``)."""
-        memoised = self._memoised
-        if len(memoised) >= TEMPLATES:
-            del memoised[next(iter(memoised))]
-        pieces = _json_template(record)
-        memoised[id(record)] = (record, pieces)
-        return pieces
-
     def line(self, record: Record) -> str:
-        """``record.to_json()`` and a newline (a frame record's from its template, the numbers formatted as
-        ``json.dumps`` does; the helpers inlined: this runs for every record)."""
-        if type(record) is not FrameRecord:
-            return _json_line(record)
-        values = record.__dict__
-        try:  # self._templates.get(record), inlined for a template made
-            found = self._entries.get(_STATIC(values))
-            pieces = found[1] if found is not None and found[0] is values["frame"] else None
-        except Exception:
-            pieces = None
-        if pieces is None or pieces is _ONCE:
-            pieces = self._templates.get(record)
-        if pieces is None:
-            return _ENCODE(record.to_dict()) + "\n"
-        i, t = record.i, record.t
-        if type(t) is float and 0.001 <= t < 4294967296.0:  # _json_t
-            when = f"{t:.6f}".rstrip("0")
-            if when[-1] == ".":
-                when += "0"
-        else:
-            when = _json_t(t)
-        if len(pieces) == 3:
-            return "".join((pieces[0], str(i) if type(i) is int else _ENCODE(i), pieces[1], when, pieces[2]))
-        reply_to, latency = record.reply_to, record.latency_s
-        if type(latency) is float and 0.001 <= latency * 1000.0 < 1e12:  # _json_ms
-            ms = f"{latency * 1000.0:.3f}".rstrip("0")
-            if ms[-1] == ".":
-                ms += "0"
-        else:
-            ms = _json_ms(latency)
-        return "".join((pieces[0], str(i) if type(i) is int else _ENCODE(i), pieces[1], when, pieces[2],
-                        str(reply_to) if type(reply_to) is int else _json_number(reply_to), pieces[3], ms,
-                        pieces[4]))
+        """``record.to_json()`` and a newline; a frame record's written out by hand (``_frame_json``)."""
+        if type(record) is FrameRecord:
+            return _frame_json(record)
+        return _json_line(record)
 
     def summary(self, summary: dict[str, Any]) -> None:
         self._lines.add(summary_json(summary) + "\n")
@@ -366,28 +277,6 @@ class JsonlView:
     def flush(self) -> None:
         self._lines.write_pending()
         self.stream.flush()
-
-
-class _TextTemplate:
-    """What the plain text of a frame record holds but its numbers: the line from the direction to the
-    decoded frame (``body``), whether the tail (``re #N  L ms``) may follow, and the lines after it."""
-
-    __slots__ = ("body", "device", "after")
-
-    def __init__(self, body: str, device: bool, after: tuple[str, ...]) -> None:
-        self.body = body
-        self.device = device
-        self.after = after
-
-
-def _text_template(record: FrameRecord) -> _TextTemplate | None:
-    """The template of a frame record's plain text; None when a line holds a tab (the console prints
-    those)."""
-    body = "".join(text for text, _ in _body(record))
-    after = tuple("".join(text for text, _ in parts) + "\n" for parts in _after(record))
-    if "\t" in body or any("\t" in line for line in after):
-        return None
-    return _TextTemplate(body, record.dir == "device", after)
 
 
 class TextView:
@@ -402,7 +291,6 @@ class TextView:
         self._plain = self.console.color_system is None
         self._lines = _Lines(stream, live)
         self._clock = _Clock()
-        self._templates: _Templates[_TextTemplate | None] = _Templates(_text_template)
 
     def _print(self, parts: list[Part]) -> None:
         """One line: what ``console.print`` prints of the pieces."""
@@ -423,35 +311,46 @@ class TextView:
 
     def write_many(self, records: Iterable[Record]) -> None:
         """``write`` each record (for the decode loop: one call a batch of records)."""
-        write = self.write
+        write, plain, write_plain = self.write, self._plain, self._write_plain
         for record in records:
-            write(record)
+            if not (plain and type(record) is FrameRecord and write_plain(record)):
+                write(record)
 
     def _write_plain(self, record: FrameRecord) -> bool:
-        """A frame record's lines from the template of its content, without colour; False when it has
-        none (or a line holds a tab): nothing was written."""
-        template = self._templates.get(record)
-        if template is None:
-            return False
-        reply_to = record.reply_to
+        """A frame record's lines without colour, formatted here (what ``_print`` makes of ``line`` and
+        ``_after``); False when a line holds a tab (the console expands those): nothing was written."""
+        (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last, line_errors,
+         _sides, _window) = record
+        if frame is None:
+            decoded = f"{header or 'unknown'} (not decodable)"
+        else:
+            decoded = str(frame)
+            if header == spec.ALARM_HEADER:
+                decoded += f" ({spec.alarm_meaning(frame.fields()['code'])})"
         tail = ""
-        if template.device and reply_to is not None:  # _tail, the latency in ms worked out once
-            latency = record.latency_s
+        if direction == "device" and reply_to is not None:  # _tail
             tail = f"  re #{reply_to}" if latency is None else \
                 f"  re #{reply_to}  {round(latency * 1000.0, 3):.1f} ms"
-        line = f"{self._clock.show(record.t)} #{record.i:<4} {template.body}{tail}\n"
+        arrow = "→" if direction == "host" else "←"
+        line = (f"{self._clock.show(t)} #{i:<4} {direction:<6} {arrow} "
+                f"{show_raw(raw):<22} {decoded}{tail}\n")
+        if violations or line_errors:
+            after = ["".join(text for text, _ in parts) + "\n" for parts in _after(record)]
+            if "\t" in line or any("\t" in text for text in after):
+                return False
+            for text in (line, *after):
+                self._lines.add(text)
+            return True
         if "\t" in line:
             return False
         lines = self._lines
-        if lines.batched and not template.after:  # lines.add(line), inlined
-            pending = lines._pending
+        if lines.batched:  # lines.add(line)
+            pending = lines.pending
             pending.append(line)
             if len(pending) >= BATCH_LINES:
                 lines.write_pending()
-            return True
-        lines.add(line)
-        for after in template.after:
-            lines.add(after)
+        else:
+            lines.add(line)
         return True
 
     def line(self, record: Record) -> list[Part]:

@@ -45,7 +45,7 @@ def captured(lines: list[bytes], gaps: list[float] | None = None) -> Script:
 def play(script: Script, url: str = SIM, **kwargs) -> list:
     port, _ = open_port(url)
     try:
-        return Player(port, script, Analyzer(no_answer_timeout=0.2, fast=False), **kwargs).run()
+        return Player(port, script, Analyzer(no_answer_timeout=0.2), **kwargs).run()
     finally:
         port.close()
 
@@ -117,7 +117,7 @@ def test_each_result_comes_as_soon_as_it_is_final():
     seen: list[tuple[int, float, bool]] = []
     port, _ = open_port(SIM)
     try:
-        player = Player(port, script, Analyzer(no_answer_timeout=0.2, fast=False),
+        player = Player(port, script, Analyzer(no_answer_timeout=0.2),
                         on_result=lambda r: seen.append((r.line.n, time.monotonic(), r.same)))
         results = player.run()
     finally:

@@ -337,3 +337,52 @@ def test_sides_in_records_and_summary_by_side():
     assert any("letter-o[/] x3 (host 2, device 1)" in line for line in summary_lines(summary))
     assert "host   ✗ letter-o" in violation_lines(recs[0])[0]
     assert "device ✗ letter-o" in violation_lines(recs[-1])[0]
+
+
+# ---- one path: feed, feed_many with records, feed_many counting only ----
+
+from test_decode_equivalence import chunks_of, cuts, events, gaps, line_error_at  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(events, gaps, cuts, st.booleans(), line_error_at, st.integers(1, 7))
+def test_records_are_made_only_where_wanted_and_change_nothing(items, dts, sizes, timed, flagged, limit):
+    """One path from chunks to verdicts: ``feed`` chunk by chunk, ``feed_many`` in batches of any size
+    with records, and ``feed_many`` counting only (no records: ``xac1 decode --format summary``) give
+    the same summary; the first two the same records, and the summary is what the records count."""
+    from sniffer.records import Tally
+
+    chunks = chunks_of(items, dts, sizes, timed, flagged)
+    one = Analyzer()
+    records = [r for chunk in chunks for r in one.feed(chunk)] + one.close()
+    many, counting = Analyzer(), Analyzer()
+    batched: list = []
+    it = iter(chunks)
+    while many.feed_many(it, batched, limit=limit):
+        pass
+    batched += many.close()
+    it = iter(chunks)
+    while counting.feed_many(it, None, limit=limit):
+        pass
+    ended = counting.close()
+    assert ended == records[len(records) - len(ended):]  # the end's records, as the others gave them
+    tally = Tally()
+    for record in records:
+        tally.add(record)
+    tally.unanswered = one.tally.unanswered
+    assert batched == records
+    assert one.summary() == many.summary() == counting.summary() == tally.summary()
+
+
+def test_close_of_a_counting_analyzer_counts_its_verdicts():
+    """The records ``close`` makes (a line left unanswered at the end) are counted like any other: the
+    summary of an analyzer that made no records before is the same as one that did."""
+    script = [(1.0, H, b"0RP3\r\n"), (1.002, D, b"0RP39302012345\r\n"), (1.01, H, b"0RV\r\n")]
+    chunks = [Chunk(t, d, b) for t, d, b in script]
+    counting, feeding = Analyzer(), Analyzer()
+    assert counting.feed_many(iter(chunks)) == 3
+    for chunk in chunks:
+        feeding.feed(chunk)
+    assert [r.type for r in counting.close(5.0)] == [r.type for r in feeding.close(5.0)] == ["timeout"]
+    assert counting.summary() == feeding.summary()
+    assert counting.summary()["violations"] == {"no-answer": 1}

@@ -12,7 +12,7 @@ not make a frame invalid: decoders accept any alarm code.
 from __future__ import annotations
 
 import functools
-from typing import Final
+from typing import Final, NamedTuple
 
 import construct as cs
 
@@ -182,19 +182,47 @@ def _walk(body: bytes, fs: spec.FrameSpec, out: list[Violation]) -> dict[str, in
 
 def diagnose(data: bytes, role: str) -> tuple[Frame | None, list[Violation]]:
     """Decode ``data`` as far as possible and list every deviation; never raises on bad data."""
-    role = _check_role(role)
-    data = bytes(data)
-    clean = decode_clean(data, role)  # most traffic: a well-formed frame, no walk needed
+    reading = read_frame(bytes(data), role)
+    return reading.frame, list(reading.violations)
+
+
+class Reading(NamedTuple):
+    """What the lenient decoder makes of one frame-shaped line: the frame (None when a field could not be
+    read), every deviation, the header it was read as (None when unknown) and whether any deviation breaks
+    a rule (``error``: not a notice; no frame is one)."""
+
+    frame: Frame | None
+    violations: tuple[Violation, ...]
+    header: str | None
+    error: bool
+
+
+READ_CACHE: Final = 4096  # distinct (bytes, role) remembered: about 2 MiB at most
+
+
+@functools.lru_cache(maxsize=READ_CACHE)
+def read_frame(data: bytes, role: str) -> Reading:
+    """``diagnose`` with the header and the verdict on errors, of ``data`` as ``bytes``: a pure function
+    of the bytes, so the last ``READ_CACHE`` distinct lines are remembered (traffic repeats its commands
+    and most answers)."""
+    checked = _check_role(role)
+    clean = decode_clean(data, checked)  # most traffic: a well-formed frame, no walk needed
     if clean is not None:
-        return clean, []
-    frame, found = _diagnose_faulty(data, role)
-    return frame, list(found)
+        return Reading(clean, (), clean.HEADER, False)
+    frame, found = _diagnose_faulty(data, checked)
+    header = frame.header if frame is not None else header_of(data, checked)
+    error = frame is None or any(v.code not in spec.NOTICES for v in found)
+    return Reading(frame, found, header, error)
 
 
-FAULTY_CACHE: Final = 1024  # distinct faulty (bytes, role) remembered: a capture repeats its faults too
+def header_of(raw: bytes, role: spec.Role) -> str | None:
+    """The spec header a frame is read as (a letter O read as the digit, lower case as upper), or None."""
+    head = raw[: spec.HEADER_WIDTH].decode("ascii", "replace").upper()
+    if head[:1] == "O":
+        head = "0" + head[1:]
+    return head if (head, role) in spec.SPECS else None
 
 
-@functools.lru_cache(maxsize=FAULTY_CACHE)
 def _diagnose_faulty(data: bytes, role: spec.Role) -> tuple[Frame | None, tuple[Violation, ...]]:
     """``diagnose`` of bytes that are not a clean frame (frames and violations are immutable)."""
     out: list[Violation] = []

@@ -54,7 +54,8 @@ The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].si
 | ``unsolicited-answer`` | answer | nothing waits for it ("Violation codes") |
 | ``garbage`` | junk | bytes that form no frame ("Framing") |
 
-Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a command): a command
+Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a command; what each
+command reads and writes of it is one handler a header, declared in the table ``_LEARNERS``): a command
 refused with an alarm takes no effect (silent item 18); a garbled, missing or faulty answer makes what
 the command would have changed unknown. What docs/protocol.md leaves open is never judged: it becomes
 ``unknown`` and is learnt from the next answer (the alarm code of an error, item 1; the OUT ports after
@@ -66,11 +67,13 @@ after 0CM0, which hands the controller to the external I/O, item 11).
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Final, Generic, Literal, TypeVar
+from operator import attrgetter
+from typing import Final, Generic, Literal, NamedTuple, TypeVar
 
 from . import motion, spec
-from .codec import diagnose, show_bytes
+from .codec import header_of, read_frame, show_bytes
 from .errors import Violation
 from .frames import (
     AlarmAnswer,
@@ -78,11 +81,16 @@ from .frames import (
     MoveDirect,
     MovePoint,
     PointAnswer,
+    ReadCurrent,
     ReadCurrentAnswer,
-    ReadOutputsAnswer,
+    ReadOutputs,
+    ReadPoint,
     ReadPointAnswer,
-    ReadVersionAnswer,
+    ReadVersion,
+    StoreCurrent,
     StoreCurrentAnswer,
+    WriteOutputs,
+    WritePoint,
 )
 
 T = TypeVar("T")
@@ -100,8 +108,7 @@ _CODES: Final = 'docs/protocol.md "Violation codes"'
 _FRAMES: Final = 'docs/protocol.md "Frames"'
 
 
-@dataclass(frozen=True)
-class Fact(Generic[T]):
+class Fact(NamedTuple, Generic[T]):
     """One thing known of the device: its value and how it is known (``unknown``, ``known``, ``learnt``)."""
 
     value: T | None = None
@@ -147,14 +154,15 @@ class Knowledge:
     stop_cleared: Fact[int] = field(default_factory=Fact)
 
     def point(self, n: int) -> Fact[PointData]:
-        return self.points.get(n, Fact())
+        return self.points.get(n, _NOTHING_KNOWN)
 
+
+_NOTHING_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
 
 VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer", "cut"]
 
 
-@dataclass(frozen=True)
-class Verdict:
+class Verdict(NamedTuple):
     """The engine's judgement of one event. ``i``: the event's number among frames and junk runs (None
     for ``no-answer``); ``sender``: whose bytes; ``header``: the spec header read (None when unknown);
     ``frame``: the lenient decode; ``violations``: what is wrong, each with a sentence citing
@@ -179,6 +187,8 @@ class Verdict:
     @property
     def codes(self) -> tuple[spec.ViolationCode, ...]:
         """Violation codes, each once, in the order found."""
+        if not self.violations:
+            return ()
         return tuple(dict.fromkeys(v.code for v in self.violations))
 
     @property
@@ -196,11 +206,28 @@ _FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> field names in 
 
 
 def _fields(frame: Frame) -> dict[str, object]:
-    """``frame.fields()``, the class's field names looked up once (the hot path of every answer)."""
+    """``frame.fields()``, the class's field names looked up once."""
     names = _FIELD_NAMES.get(type(frame))
     if names is None:
         names = _FIELD_NAMES[type(frame)] = tuple(frame.fields())
     return {name: getattr(frame, name) for name in names}
+
+
+def _values_getter(names: tuple[str, ...]) -> Callable[[Frame], tuple[object, ...]]:
+    if not names:
+        return lambda frame: ()
+    get = attrgetter(*names)
+    return (lambda frame: (get(frame),)) if len(names) == 1 else get
+
+
+# (header, role) -> the frame's field values in wire order, as a tuple (an echo is compared with them)
+_VALUES: Final[dict[tuple[str, str], Callable[[Frame], tuple[object, ...]]]] = {
+    (fs.header, fs.role): _values_getter(fs.field_names) for fs in spec.FRAME_SPECS}
+_ECHOES: Final = frozenset((fs.header, fs.role) for fs in spec.FRAME_SPECS if fs.echo)
+# headers whose command and answer both carry N (an answer for another N is another command's)
+_BOTH_N: Final = frozenset(
+    fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND and "n" in fs.field_names
+    and "n" in spec.SPECS[(fs.header, spec.ANSWER)].field_names)
 
 
 def side_of(code: spec.ViolationCode, sender: spec.Side) -> spec.Side:
@@ -223,39 +250,30 @@ _ERROR: Final = "error"  # a frame breaking the frame table, or a junk line: owe
 _DISCARD: Final = "discard"  # sent during a move: discarded by the device (silent item 10)
 
 
-@dataclass
 class _Line:
-    """A host line waiting for its answer."""
+    """A host line waiting for its answer. ``overlapped``: sent while another line waited (the host's
+    fault, not owed an answer); ``deadline``: when its answer window closes (None without time)."""
 
-    i: int
-    kind: str
-    header: str | None
-    frame: Frame | None
-    t_last: float | None
-    deadline: float | None
-    waited_s: float
-    overlapped: bool = False  # sent while another line waited: the host's fault, not owed an answer
-    is_move: bool = False
+    __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
+                 "owed", "is_reset")
 
-    @property
-    def owed(self) -> bool:
-        """Does silence to this line break a rule (``no-answer``)?"""
-        return self.kind != _DISCARD and not self.overlapped
-
-    @property
-    def is_reset(self) -> bool:
-        return self.kind == _COMMAND and self.header == spec.RESET_HEADER
+    def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
+                 deadline: float | None, waited_s: float, overlapped: bool = False,
+                 is_move: bool = False) -> None:
+        self.i = i
+        self.kind = kind
+        self.header = header
+        self.frame = frame
+        self.t_last = t_last
+        self.deadline = deadline
+        self.waited_s = waited_s
+        self.overlapped = overlapped
+        self.is_move = is_move
+        self.owed = kind != _DISCARD and not overlapped  # does silence to it break a rule (no-answer)?
+        self.is_reset = kind == _COMMAND and header == spec.RESET_HEADER
 
     def name(self) -> str:
         return f"{self.header or 'line'} #{self.i}"
-
-
-def header_of(raw: bytes, role: spec.Role) -> str | None:
-    """The spec header a frame is read as (a letter O read as the digit, lower case as upper), or None."""
-    head = raw[: spec.HEADER_WIDTH].decode("ascii", "replace").upper()
-    if head[:1] == "O":
-        head = "0" + head[1:]
-    return head if (head, role) in spec.SPECS else None
 
 
 def _show(name: str, value: object) -> str:
@@ -363,20 +381,21 @@ class Conversation:
                    window: float | None = None) -> list[Verdict]:
         """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
         for its answer, when it says so (the client); else the engine's answer window."""
-        out = self._time(t_first)
-        i = self._number()
-        frame, violations = diagnose(raw, spec.COMMAND)
-        found = list(violations)
-        header = frame.header if frame is not None else header_of(raw, spec.COMMAND)
-        error = frame is None or _is_error(violations)
-        found += self._host_duties(header, error)
+        out = [] if t_first is None else self.tick(t_first, self._answer_since)
+        i = self._next_i
+        self._next_i = i + 1
+        raw = raw if type(raw) is bytes else bytes(raw)
+        frame, violations, header, error = read_frame(raw, spec.COMMAND)
+        found = [*violations]
+        if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
+            found += self._host_duties(header, error)
         line = self._enqueue(i, _ERROR if error else _COMMAND, header, None if error else frame,
                              t_last, found, window)
         if line.is_move and self.knowledge.latched.value is None and self._motion is None \
                 and line.kind == _COMMAND and not line.overlapped:
             self._motion = line
-        out.append(Verdict("host-frame", HOST, i, bytes(raw), header, frame, tuple(found),
-                           t=t_first, t_last=t_last, waited_s=line.waited_s))
+        out.append(Verdict("host-frame", HOST, i, raw, header, frame, tuple(found), None, None, t_first,
+                           t_last, line.waited_s))
         return out
 
     def host_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -396,14 +415,16 @@ class Conversation:
     def device_frame(self, raw: bytes, t_first: float | None = None,
                      t_last: float | None = None) -> list[Verdict]:
         """A frame-shaped device line: an answer."""
-        out = self._time(t_first, answer=True)
+        out = [] if t_first is None else self.tick(t_first, t_first)
         self._answer_since = None
-        i = self._number()
-        frame, violations = diagnose(raw, spec.ANSWER)
-        found = list(violations)
-        header = frame.header if frame is not None else header_of(raw, spec.ANSWER)
+        i = self._next_i
+        self._next_i = i + 1
+        raw = raw if type(raw) is bytes else bytes(raw)
+        frame, violations, header, _error = read_frame(raw, spec.ANSWER)
+        found = [*violations]
         line, skipped = self._pair(header, t_first)
-        out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
+        if skipped:
+            out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
         latency = None
         if line is None:
             found.append(_v("unsolicited-answer", f"{header or 'this'} answer with no command waiting "
@@ -411,7 +432,7 @@ class Conversation:
         elif line.t_last is not None and t_first is not None:
             latency = t_first - line.t_last
         self._judge_answer(line, header, frame, found)
-        out.append(Verdict("device-frame", DEVICE, i, bytes(raw), header, frame, tuple(found),
+        out.append(Verdict("device-frame", DEVICE, i, raw, header, frame, tuple(found),
                            None if line is None else line.i, latency, t_first, t_last))
         return out
 
@@ -445,9 +466,11 @@ class Conversation:
         """Time passes to ``now``: lines whose answer window closed get ``no-answer``. ``answer_since``:
         a device line began at this time and is still arriving (an answer that starts in time is in
         time)."""
-        self._last_t = now if self._last_t is None else max(self._last_t, now)
+        last = self._last_t
+        if last is None or now > last:
+            self._last_t = now
         self._answer_since = answer_since
-        return self._expire(now)
+        return self._expire(now) if self._queue else []
 
     def ended_inside_frame(self, sender: spec.Side, raw: bytes, t_first: float | None = None,
                            t_last: float | None = None) -> list[Verdict]:
@@ -522,7 +545,7 @@ class Conversation:
             kind = _DISCARD
             found.append(_v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
                             f"waits for its answer"))
-        else:
+        elif self._queue:
             first = next((w for w in self._queue if w.owed), None)
             if first is not None:
                 overlapped = True
@@ -542,13 +565,21 @@ class Conversation:
 
     def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line]]:
         """The line an answer belongs to, and the lines it shows were skipped (module docstring)."""
-        if not self._queue:
+        queue = self._queue
+        if not queue:
             return None, []
-        sent = [w for w in self._queue if t is None or w.t_last is None or w.t_last <= t]
         chosen: _Line | None = None
         if header is not None and header != spec.ALARM_HEADER:
-            chosen = next((w for w in sent if w.header == header
-                           and (w.kind != _DISCARD or len(self._queue) == 1)), None)
+            alone = len(queue) == 1
+            for w in queue:  # the first line of its header sent before the answer began
+                if w.header == header and (t is None or w.t_last is None or w.t_last <= t) \
+                        and (alone or w.kind != _DISCARD):
+                    chosen = w
+                    break
+        if chosen is not None and chosen is queue[0]:  # the usual answer: to the head, nothing skipped
+            queue.popleft()
+            self._end_motion(chosen)
+            return chosen, []
         if chosen is None:
             for w in self._queue:
                 fits = header == spec.ALARM_HEADER or (w.header is not None and w.header == header)
@@ -574,6 +605,11 @@ class Conversation:
         head = self._queue[0] if self._queue else None
         if head is None or (self._answer_since is not None and head.deadline is not None
                             and self._answer_since <= head.deadline):
+            return out
+        if len(self._queue) == 1:
+            if head.deadline is None or not head.deadline < now:
+                return out  # its window is still open (the usual tick)
+        elif all(w.deadline is None or not w.deadline < now for w in self._queue):
             return out
         keep: deque[_Line] = deque()
         for w in self._queue:
@@ -604,9 +640,9 @@ class Conversation:
     def _host_duties(self, header: str | None, error: bool) -> list[Violation]:
         """Storm and alarm-ignored (docs/protocol.md "Behaviour the vendor text states": host duty,
         latched alarm)."""
+        k = self.knowledge
         out = []
         what = header or "this frame"
-        k = self.knowledge
         good_reset = header == spec.RESET_HEADER and not error
         if k.storm_run >= self.storm_limit and (good_reset or self._reset_in_storm):
             which = "an alarm reset" if good_reset else "the first command after a successful alarm reset"
@@ -626,10 +662,12 @@ class Conversation:
 
     def _judge_answer(self, line: _Line | None, header: str | None, frame: Frame | None,
                       found: list[Violation]) -> None:
-        self._storm(header, frame)
         if isinstance(frame, AlarmAnswer):
+            self._storm(header, frame)
             self._alarm(line, frame.code, found)
             return
+        if header is not None and header != spec.ALARM_HEADER and header != spec.RESET_HEADER:
+            self.knowledge.storm_run = 0  # any other answer ends the storm run (``_storm``)
         if header is None or frame is None or header == spec.ALARM_HEADER:
             if line is not None:
                 self._outcome_unknown(line)
@@ -644,8 +682,9 @@ class Conversation:
         if header == spec.RESET_HEADER and line.is_reset:
             self._reset_done(found)
             return
-        self._latch_on_normal_answer(line, found)
-        clean = self._pairing(line, header, frame, found) and not _is_error(found)
+        if self.knowledge.latched.value is not None:
+            self._latch_on_normal_answer(line, found)
+        clean = self._pairing(line, header, frame, found) and not (found and _is_error(found))
         if clean and line.frame is not None:
             self._learn(line.frame, frame, found)
         else:
@@ -751,17 +790,19 @@ class Conversation:
         if header != line.header:
             found.append(_v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
             return False
-        mine, theirs = _fields(frame), _fields(cmd)
-        if frame.frame_spec().echo:
-            if mine != theirs:
+        key = (header, spec.ANSWER)
+        if key in _ECHOES:
+            values = _VALUES[key]
+            if values(frame) != values(cmd):
+                mine, theirs = _fields(frame), _fields(cmd)
                 diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
                                  for k, v in mine.items() if theirs.get(k) != v)
                 found.append(_v("echo-mismatch", f"{header} echo differs from the command {line.name()}: "
                                 f"{diff}"))
                 return False
-        elif "n" in theirs and "n" in mine and mine["n"] != theirs["n"]:
-            found.append(_v("answer-mismatch", f"{header} answer for N={mine['n']:X} to the command "
-                            f"{line.name()} for N={theirs['n']:X}", _CODES))
+        elif header in _BOTH_N and frame.n != cmd.n:  # type: ignore[attr-defined]
+            found.append(_v("answer-mismatch", f"{header} answer for N={frame.n:X} to the command "  # type: ignore[attr-defined]
+                            f"{line.name()} for N={cmd.n:X}", _CODES))  # type: ignore[attr-defined]
             return False
         return True
 
@@ -772,47 +813,75 @@ class Conversation:
                         f"{'established' if fact.status == KNOWN else 'read earlier'} {how}"))
 
     def _learn(self, c: Frame, a: Frame, found: list[Violation]) -> None:
-        """What a clean exchange establishes, and the read-backs it is judged against."""
+        """What a clean exchange establishes, and the read-backs it is judged against: the mode, then the
+        command's own reads and writes of the knowledge (``_LEARNERS``, one handler a header)."""
         k = self.knowledge
-        k.mode = Fact(getattr(c, "mode", 1), KNOWN)  # silent item 11: communicating gives mode 1
-        if k.mode.value == 0:  # silent item 11: the external I/O owns the controller until the next line
+        mode = getattr(c, "mode", 1)  # silent item 11: communicating gives mode 1
+        k.mode = _MODE_1 if mode == 1 and type(mode) is int else Fact(mode, KNOWN)
+        if mode == 0:  # silent item 11: the external I/O owns the controller until the next line
             k.outputs, k.position = Fact(), Fact()
             if k.homed.value is not True:
                 k.homed = Fact()
-        if isinstance(a, ReadPointAnswer):
-            self._read_point(a, found)
-        elif c.header == "0WP":
-            k.points[c.n] = Fact(PointData(c.v, c.a, c.o, c.pos), KNOWN)  # type: ignore[attr-defined]
-        elif isinstance(a, ReadCurrentAnswer):
-            self._read_current(a, found)
-        elif isinstance(a, StoreCurrentAnswer):
-            pos = k.position
-            if pos.judged and a.pos != pos.value:
-                self._readback(found, f"0WC{a.n:X}'s Pos", f"{a.pos:06X}", pos,
-                               f"the axis at {pos.value:06X}")
-            k.points[a.n] = Fact(PointData(a.v, a.a, a.o, a.pos), LEARNT)  # V, A, O: silent item 4
-        elif isinstance(c, MovePoint):
-            k.homed = Fact(True, KNOWN)
-            point = k.point(c.n)
-            k.position = Fact(point.value.pos, point.status) if c.n and point.value is not None else Fact()
-            if c.n:
-                k.outputs = Fact()  # silent item 8
-        elif isinstance(c, MoveDirect):
-            k.homed, k.position = Fact(True, KNOWN), Fact(c.pos, KNOWN)
-        elif isinstance(a, ReadOutputsAnswer):
-            if k.outputs.judged and a.o != k.outputs.value:
-                self._readback(found, "0RS's O", a.o, k.outputs, f"O={k.outputs.value}")
-            else:
-                k.outputs = Fact(a.o, LEARNT)
-        elif c.header == "0WS":
-            k.outputs = Fact(c.o, KNOWN)  # type: ignore[attr-defined]
-        elif isinstance(a, ReadVersionAnswer):
-            if k.version.judged and a.version != k.version.value:
-                self._readback(found, "0RV", a.version, k.version, f"version {k.version.value}")
-            else:
-                k.version = Fact(a.version, LEARNT)
+        learn = _LEARNERS.get(c.HEADER)
+        if learn is not None:
+            learn(self, c, a, found)
 
-    def _read_point(self, a: ReadPointAnswer, found: list[Violation]) -> None:
+
+    def _on_write_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0WP: the point is what was written."""
+        k = self.knowledge
+        k.points[c.n] = Fact(PointData(c.v, c.a, c.o, c.pos), KNOWN)  # type: ignore[attr-defined]
+
+
+    def _on_store_current(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0WC: the point stored at the position (V, A, O learnt: silent item 4)."""
+        k = self.knowledge
+        assert isinstance(a, StoreCurrentAnswer)
+        pos = k.position
+        if pos.judged and a.pos != pos.value:
+            self._readback(found, f"0WC{a.n:X}'s Pos", f"{a.pos:06X}", pos,
+                           f"the axis at {pos.value:06X}")
+        k.points[a.n] = Fact(PointData(a.v, a.a, a.o, a.pos), LEARNT)
+
+    def _on_move_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0MP: homed; at the point (as known as the point); the OUT ports unknown after 0MP N (item 8)."""
+        k = self.knowledge
+        assert isinstance(c, MovePoint)
+        k.homed = _HOMED
+        point = k.point(c.n)
+        k.position = Fact(point.value.pos, point.status) if c.n and point.value is not None else Fact()
+        if c.n:
+            k.outputs = Fact()  # silent item 8
+
+    def _on_move_direct(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0MV: homed, at the position sent."""
+        k = self.knowledge
+        k.homed, k.position = _HOMED, Fact(c.pos, KNOWN)  # type: ignore[attr-defined]
+
+    def _on_read_outputs(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0RS: the OUT ports read back."""
+        k = self.knowledge
+        o = a.o  # type: ignore[attr-defined]
+        if k.outputs.judged and o != k.outputs.value:
+            self._readback(found, "0RS's O", o, k.outputs, f"O={k.outputs.value}")
+        else:
+            k.outputs = Fact(o, LEARNT)
+
+    def _on_write_outputs(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0WS: the OUT ports are what was written."""
+        self.knowledge.outputs = Fact(c.o, KNOWN)  # type: ignore[attr-defined]
+
+    def _on_read_version(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0RV: the version read back."""
+        k = self.knowledge
+        version = a.version  # type: ignore[attr-defined]
+        if k.version.judged and version != k.version.value:
+            self._readback(found, "0RV", version, k.version, f"version {k.version.value}")
+        else:
+            k.version = Fact(version, LEARNT)
+
+    def _on_read_point(self, c: Frame, a: ReadPointAnswer, found: list[Violation]) -> None:
+        """0RP: the point read back (against what was written or read before)."""
         k = self.knowledge
         seen = PointData(a.v, a.a, a.o, a.pos)
         fact = k.point(a.n)
@@ -821,7 +890,7 @@ class Conversation:
         elif fact.value is None:
             k.points[a.n] = Fact(seen, LEARNT)
 
-    def _read_current(self, a: ReadCurrentAnswer, found: list[Violation]) -> None:
+    def _on_read_current(self, c: Frame, a: ReadCurrentAnswer, found: list[Violation]) -> None:
         """0RC: before homing N, V, A 0 and Pos FFFFFF (stated); after a move, where the move went."""
         k = self.knowledge
         unknown = a.pos == spec.UNKNOWN_POSITION
@@ -882,6 +951,24 @@ class Conversation:
                 return t + motion.move_time(far, s.point_speed(1), 1)
             return t + motion.move_time(point.pos - start, s.point_speed(point.v), point.a)
         return t
+
+
+_MODE_1: Final = Fact(1, KNOWN)
+_HOMED: Final = Fact(True, KNOWN)
+
+# The knowledge each command reads and writes on a clean exchange, one handler a header (``_learn``);
+# 0CM and 0%C change only the mode (and the latch, in ``_reset_done``).
+_LEARNERS: Final[dict[str, Callable[..., None]]] = {
+    ReadPoint.HEADER: Conversation._on_read_point,
+    WritePoint.HEADER: Conversation._on_write_point,
+    ReadCurrent.HEADER: Conversation._on_read_current,
+    StoreCurrent.HEADER: Conversation._on_store_current,
+    MovePoint.HEADER: Conversation._on_move_point,
+    MoveDirect.HEADER: Conversation._on_move_direct,
+    ReadOutputs.HEADER: Conversation._on_read_outputs,
+    WriteOutputs.HEADER: Conversation._on_write_outputs,
+    ReadVersion.HEADER: Conversation._on_read_version,
+}
 
 
 def point_of(answer: Frame) -> PointData | None:

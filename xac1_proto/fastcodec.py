@@ -12,9 +12,7 @@ grammar itself stays defined once, in ``spec.py`` and ``grammar.py``.
 
 from __future__ import annotations
 
-import functools
 import re
-from collections.abc import Callable
 from typing import Final
 
 from . import spec
@@ -22,28 +20,19 @@ from .frames import FRAME_CLASSES, Frame
 
 _DIGITS: Final = {16: b"[0-9A-F]", 10: b"[0-9]"}
 
-Check = Callable[[str], "int | str | None"]
+# a field's check: radix (0 for a text field, kept as its digits), lowest and highest value, and the
+# values allowed (the alarm codes the vendor lists with a meaning; None: any in range)
+Check = tuple[int, int, int, "frozenset[int] | None"]
+_LISTED_ALARMS: Final = frozenset(c for c, meaning in spec.ALARMS.items() if meaning is not None)
 
 
-def _converter(fs: spec.FrameSpec, name: str) -> Check:
-    """Text of one field -> its value, or None when it is out of range (the full path says why)."""
+def _check(fs: spec.FrameSpec, name: str) -> Check:
     field = spec.FIELDS[name]
     if field.text:
-        return lambda text: text
+        return 0, 0, 0, None
     lo, hi = fs.field_range(name)
-    radix = field.radix
-    if name == "code" and fs.header == spec.ALARM_HEADER:
-        listed = frozenset(c for c, meaning in spec.ALARMS.items() if meaning is not None)
-
-        def alarm(text: str) -> int | None:
-            value = int(text, radix)
-            return value if value in listed and lo <= value <= hi else None
-        return alarm
-
-    def number(text: str) -> int | None:
-        value = int(text, radix)
-        return value if lo <= value <= hi else None
-    return number
+    listed = _LISTED_ALARMS if name == "code" and fs.header == spec.ALARM_HEADER else None
+    return field.radix, lo, hi, listed
 
 
 def _pattern(fs: spec.FrameSpec) -> re.Pattern[bytes]:
@@ -62,28 +51,15 @@ _Entry = tuple[re.Pattern[bytes], type[Frame], tuple[str, ...], tuple[Check, ...
 _TABLE: Final[dict[tuple[bytes, str], _Entry]] = {
     (fs.header.encode("ascii"), fs.role): (
         _pattern(fs), FRAME_CLASSES[fs.key], fs.field_names,
-        tuple(_converter(fs, name) for name in fs.field_names),
+        tuple(_check(fs, name) for name in fs.field_names),
     )
     for fs in spec.FRAME_SPECS
 }
 
 
 def decode_clean(data: bytes, role: str) -> Frame | None:
-    """The frame ``data`` holds if it is well formed and every field in range, else None. Traffic repeats
-    a few frames, and a frame is immutable: the last ``CACHE_SIZE`` distinct answers are remembered."""
-    return _decode_cached(bytes(data), role)
-
-
-CACHE_SIZE: Final = 4096  # distinct (bytes, role) remembered: about 1 MiB at most
-
-
-@functools.lru_cache(maxsize=CACHE_SIZE)
-def _decode_cached(data: bytes, role: str) -> Frame | None:
-    return _decode_clean(data, role)
-
-
-def _decode_clean(data: bytes, role: str) -> Frame | None:
-    """``decode_clean`` without the cache."""
+    """The frame ``data`` holds if it is well formed and every field in range, else None (the caller,
+    ``codec.read_frame``, remembers the last distinct lines)."""
     entry = _TABLE.get((data[: spec.HEADER_WIDTH], role))
     if entry is None:
         return None
@@ -92,9 +68,12 @@ def _decode_clean(data: bytes, role: str) -> Frame | None:
     if match is None:
         return None
     values: dict[str, int | str] = {}
-    for name, check, text in zip(names, checks, match.groups(), strict=True):
-        value = check(text.decode("ascii"))
-        if value is None:
-            return None
+    for name, (radix, lo, hi, listed), text in zip(names, checks, match.groups(), strict=True):
+        if not radix:
+            values[name] = text.decode("ascii")
+            continue
+        value = int(text, radix)
+        if value < lo or value > hi or (listed is not None and value not in listed):
+            return None  # out of range: the full path says why
         values[name] = value
     return cls.unchecked(**values)

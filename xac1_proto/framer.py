@@ -15,9 +15,9 @@ byte or in any chunks gives the same events. Every byte fed comes out in exactly
 from __future__ import annotations
 
 import bisect
+import functools
 import re
-from dataclasses import dataclass
-from typing import Final
+from typing import Final, NamedTuple
 
 from . import spec
 
@@ -39,8 +39,7 @@ _STRONG: Final = re.compile(_START_BYTE.pattern + b"(?:" + b"|".join(re.escape(t
                             + b")")
 
 
-@dataclass(frozen=True, slots=True)
-class FrameBytes:
+class FrameBytes(NamedTuple):
     """A candidate frame: from a frame start to its LF. ``offset`` counts bytes fed before it."""
 
     raw: bytes
@@ -49,8 +48,7 @@ class FrameBytes:
     t_last: float | None
 
 
-@dataclass(frozen=True, slots=True)
-class Junk:
+class Junk(NamedTuple):
     """Bytes that form no frame, and why: ``no-frame-start``, ``truncated``, ``overflow``,
     ``flushed``."""
 
@@ -62,6 +60,18 @@ class Junk:
 
 
 Event = FrameBytes | Junk
+
+
+@functools.cache
+def _whole_line_pattern(max_frame: int) -> re.Pattern[bytes]:
+    """A chunk the general path would emit whole, as one pattern (``Framer.feed``'s common case): a frame
+    start (``0`` + a letter or ``%``, or ``O`` + a known tail), then bytes other than LF none of which
+    starts a full header, then the LF, ``max_frame`` bytes at most. (With the LF last, no start byte is
+    left undecided.)"""
+    tails = b"(?:" + b"|".join(re.escape(t) for t in sorted(_TAILS)) + b")"
+    lead, letter_o = re.escape(spec.LEAD), re.escape(spec.LETTER_O)
+    start = b"(?:" + lead + b"(?=[A-Za-z%])|" + letter_o + b"(?=" + tails + b"))"
+    return re.compile(start + b"(?:(?!" + _START_BYTE.pattern + tails + b")[^\n]){0,%d}\n" % (max_frame - 2))
 
 
 def _strong_start(buf: bytes | bytearray, p: int) -> int:
@@ -100,6 +110,7 @@ class Framer:
         self._base = 0  # stream offset of _buf[0]
         self._ends: list[int] = []  # stream offset just past each fed chunk still in _buf
         self._times: list[float | None] = []
+        self._whole = _whole_line_pattern(max_frame).fullmatch  # one frame, exactly
 
     @property
     def bytes_in(self) -> int:
@@ -113,23 +124,15 @@ class Framer:
 
     def feed(self, data: bytes, t: float | None = None) -> list[Event]:
         """Take the next bytes of the stream (all received at time ``t``); the events they complete."""
-        if not self._buf and data and self._whole_line(data):  # the common chunk: one frame, nothing held
+        if not self._buf and self._whole(data) is not None:  # the common chunk: one frame, nothing held
             offset = self._base
-            self._base += len(data)
-            return [FrameBytes(bytes(data), offset, t, t)]
+            self._base = offset + len(data)
+            return [FrameBytes(data if type(data) is bytes else bytes(data), offset, t, t)]
         if data:
             self._buf += data
             self._ends.append(self.bytes_in)
             self._times.append(t)
         return self._drain(final=False)
-
-    def _whole_line(self, data: bytes) -> bool:
-        """Is ``data`` exactly one frame candidate the general path would emit whole: a frame start,
-        its only LF last, within ``max_frame``, no full header after its first byte? (With the LF last,
-        no start byte is left undecided.)"""
-        n = len(data)
-        return (n <= self.max_frame and data[-1] == _LF and data.find(_LF) == n - 1
-                and _weak_start(data, 0) == 1 and _STRONG.search(data, 1) is None)
 
     def flush(self) -> list[Event]:
         """End of data (or an idle line): what is pending comes out, a partial frame as junk."""

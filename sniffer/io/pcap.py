@@ -8,26 +8,24 @@ END) carry bytes the capturing port sent (``TX``), 0x02/0x04 (DATA_RX_START/END)
 (``RX``); 0x07 FRAMING_ERROR and 0x08 PARITY_ERROR mark their bytes as damaged (on the side of the
 last data packet); other events carry no data. USER0 (147) is the older way such files were written
 and is read the same. The reader walks pcap records or pcapng blocks (SHB, IDB, EPB, SPB, either byte
-order, any if_tsresol) one at a time and checks each against the file and itself: a length past the
+order, any if_tsresol) once, in order, and checks each against the file and itself: a length past the
 end of the file or implausible (pcapng: not repeated at the block's end), a body shorter than its fixed
-fields, a captured length larger than its block, a time out of range. Each is reported as
-``file:offset (record/block N): what was wrong`` and reading resumes at the next plausible record or
-block (a bounded look-ahead), so the packets after damage are kept.
+fields, a captured length larger than its block, a time out of range or running backwards
+(``timeline``). Each is reported as ``file:offset (record/block N): what was wrong`` and reading resumes
+at the next plausible record or block (a bounded look-ahead), so the packets after damage are kept.
+Every byte is line data in a chunk, structure of a record read, or counted unread by a problem.
 
-Two walks share that work (``_Walk`` holds what they carry from record to record: byte order,
-interfaces, record count, last time and direction). The careful walk (``_pcap_record``,
-``_pcapng_block``, ``_chunk``) reads one record at a time through ``_Buffer.peek``/``skip`` and knows
-every case above. The fast walk runs over the bytes already read (``_Buffer.window``: one block of
-``_READ`` or more bytes, no copy) with ``struct.unpack_from`` at an offset and locals only, and takes
-the common record alone: for pcapng an EPB in the section's byte order, whole in the block with the
-next block's header (one unpack reads its trailing length and that header), the length plausible and
-repeated, on a serial interface; for pcap a record whose length and time fraction are sane and that is
-whole in the block; then an RTAC TX/RX event with sane microseconds and a time ``Clock`` accepts. It
-builds no ``where`` text (nothing is reported), counts the records as the careful walk does, hands its
-state back when it stops, and leaves anything else, unchanged, to the careful walk for one record:
-damage, SHB, IDB, SPB, other events, a bad time, a record cut by the end of the block (the careful walk
-reads on). So both give the same chunks and problems, in the same order. Memory: one block of the
-file plus at most one record's (or one ``_SCAN`` look-ahead's) bytes.
+One walk (``_pcap_chunks``, ``_pcapng_chunks``): a loop over the block of the file read so far
+(``_Buffer.window``: one block of ``_READ`` or more bytes, no copy) with ``struct.unpack_from`` at an
+offset and locals. Each turn takes one record or block and decides, from its header, what it is: an
+enhanced packet block (pcapng) or a record (pcap) that is whole in the block is taken in the loop, its
+packet too when it is the common one (a TX/RX event, sane microseconds, a time in range and not running
+backwards), any other packet by ``_chunk``, which says what is wrong with it; a record or block not yet
+all read makes the loop read on (``_Buffer.peek``); any other block (SHB, IDB, SPB, other types) and
+damage (an implausible or unrepeated length, the file ending inside) are read by ``_pcap_record`` /
+``_pcapng_block``, which report and resynchronise. The loop keeps its state in locals and hands it to
+``_Walk`` before any of those. Memory: one block of the file plus at most one record's (or one ``_SCAN``
+look-ahead's) bytes.
 
 Host side default: ``TX`` (the capturing port sent the commands). The writer (``PcapngWriter``) writes
 host bytes as TX and device bytes as RX, so its files read back with the default.
@@ -41,9 +39,10 @@ from collections.abc import Callable, Iterator
 from functools import partial
 from typing import IO, Final
 
-from xac1_proto.chunk import HOST, Chunk, Direction, new_chunk
+from xac1_proto.chunk import HOST, Chunk, Direction
 
 from .base import MAX_TIME, Clock, FormatError, Sides, Source
+from .timeline import TOLERANCE_S, Timeline
 
 FORMAT: Final = "pcap"
 DESCRIPTION: Final = "pcap / pcapng with LINKTYPE_RTAC_SERIAL (250) or USER0 (147)"
@@ -63,17 +62,21 @@ _PCAP_MAGIC: Final = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">
                       b"\x4d\x3c\xb2\xa1": ("<", 1e-9), b"\xa1\xb2\x3c\x4d": (">", 1e-9)}
 _SHB: Final = b"\x0a\x0d\x0d\x0a"
 _BLOCK_EPB, _BLOCK_SPB, _BLOCK_IDB = 6, 3, 1
+# the block types of the pcapng specification (SHB apart): IDB, packet (obsolete), SPB, name resolution,
+# interface statistics, EPB, IRIG timestamp, ARINC 429, systemd journal export, decryption secrets, custom
+_BLOCK_TYPES: Final = frozenset({*range(1, 11), 0x00000BAD, 0x40000BAD})
 _MAX_RECORD: Final = 1 << 20
 _RESYNC_MAX: Final = 1 << 16  # longest record or block taken as a resynchronisation point
 _SCAN: Final = 1 << 18  # look-ahead searched for the next record after damage
-_READ: Final = 1 << 17  # bytes read at once (at least): the fast walk's block
+_READ = 1 << 17  # bytes read at once (at least): the walk's block (a test makes it tiny)
 
-# the fast walk's fields, by byte order
+# the walk's fields, by byte order
 _PCAP_HEAD: Final = {o: struct.Struct(o + "4xII").unpack_from for o in "<>"}  # time fraction, length
-_EPB_HEAD: Final = {o: struct.Struct(o + "III8xI").unpack_from for o in "<>"}  # type, length, iface, cap
-_EPB_TAIL: Final = {o: struct.Struct(o + "IIII8xI").unpack_from for o in "<>"}  # trailing length, next head
-_EPB_TIME: Final = {o: struct.Struct(o + "II").unpack_from for o in "<>"}  # timestamp high, low
-_U32: Final = {o: struct.Struct(o + "I").unpack_from for o in "<>"}  # pcap record seconds
+# an EPB's type, length, interface, time high and low words, captured length; the same after the
+# trailing length of the block before
+_EPB_HEAD: Final = {o: struct.Struct(o + "6I").unpack_from for o in "<>"}
+_EPB_TAIL: Final = {o: struct.Struct(o + "7I").unpack_from for o in "<>"}
+_U32: Final = {o: struct.Struct(o + "I").unpack_from for o in "<>"}  # record seconds, trailing length
 _RTAC_FAST: Final = struct.Struct(">IIB").unpack_from  # seconds, microseconds, event
 
 _Packet = tuple[str, float | None, bytes]  # where, time (None: none), RTAC header and data
@@ -99,7 +102,7 @@ class _Buffer:
     """A look-ahead window over the file: ``peek`` without consuming, ``skip`` to consume; ``offset`` is
     the file offset of the window's first byte. The window is one immutable block read in large pieces
     and a position in it: a peek is one slice, a skip moves the position (no per-record copy of the
-    rest); ``window`` gives the block itself to the fast walk. Memory: a read block plus the largest
+    rest); ``window`` gives the block itself to the walk's loop. Memory: a read block plus the largest
     peek (about one record)."""
 
     def __init__(self, src: Source) -> None:
@@ -146,12 +149,14 @@ class _Buffer:
 
 
 class _Walk:
-    """What reading one file carries from record to record, shared by the careful and the fast walk."""
+    """What reading one file carries from record to record (the walk's loop holds it in locals between
+    the records it takes itself)."""
 
     def __init__(self, src: Source, buf: _Buffer, sides: Sides) -> None:
         self.src = src
         self.buf = buf
         self.clock = Clock(src.report)
+        self.timeline = Timeline(src.report)
         tx, rx = sides.direction("TX"), sides.direction("RX")
         self.by_event: tuple[Direction | None, ...] = tuple(
             tx if e in TX_EVENTS else rx if e in RX_EVENTS else None for e in range(256))
@@ -172,7 +177,8 @@ class _Walk:
 
 
 def _chunk(w: _Walk, where: str, t: float | None, payload: bytes) -> Chunk | None:
-    """The chunk of one packet's RTAC header and data (None: none, or a damaged packet: reported)."""
+    """The chunk of one packet's RTAC header and data (None: none, or a damaged packet: reported): every
+    case, where the walk's loop takes only the common one."""
     report = w.src.report
     if len(payload) < RTAC_HEADER.size:
         report.problem(where, f"packet of {len(payload)} bytes is shorter than the 12-byte RTAC "
@@ -186,6 +192,7 @@ def _chunk(w: _Walk, where: str, t: float | None, payload: bytes) -> Chunk | Non
     elif secs or usecs:
         t = secs + usecs / 1e6
     t = w.clock.check(t, where)
+    w.timeline.check(t, where)
     d = w.by_event[event]
     if d is not None:
         w.last = d
@@ -217,53 +224,65 @@ def _pcap_start(w: _Walk, magic: bytes) -> bool:
 
 
 def _pcap_chunks(w: _Walk) -> Iterator[Chunk]:
-    """The chunks of a pcap file's records: the fast walk over the block read while records are common
-    (see the module docstring), one careful record where it stops."""
-    buf = w.buf
-    fast = hasattr(buf, "window")  # a buffer without a block (a test's reference) is walked carefully
-    while True:
-        if fast:
-            block, start = buf.window()
-            head, seconds, rtac, by_event = _PCAP_HEAD[w.order], _U32[w.order], _RTAC_FAST, w.by_event
-            ticks, unit, max_record, max_time = w.ticks, w.unit, _MAX_RECORD, MAX_TIME
-            n, t, d, good = w.n, 0.0, None, start
-            p, size = start, len(block)
-            while p + 16 <= size:
-                frac, incl = head(block, p)
-                b = p + 16  # the RTAC header
-                q = b + incl
-                if incl > max_record or frac >= ticks or q > size or incl < 12:
-                    break
-                secs, usecs, event = rtac(block, b)
+    """The chunks of a pcap file's records, in one walk (see the module docstring)."""
+    buf, new, rtac, max_time = w.buf, Chunk, _RTAC_FAST, MAX_TIME
+    head, seconds, by_event = _PCAP_HEAD[w.order], _U32[w.order], w.by_event
+    ticks, unit, max_record = w.ticks, w.unit, _MAX_RECORD
+    while True:  # a turn per reload of the block: after a read, damage or an uncommon packet
+        block, start = buf.window()
+        p, size = start, len(block)
+        n, d, t, last, tol = w.n, w.last, w.clock.last, w.timeline.last, TOLERANCE_S
+        good = -1  # the offset of the last record taken (its seconds are the resynchronisation's hint)
+        need = 16  # bytes from p that must be in the block to go on (0: damage)
+        while p + 16 <= size:
+            frac, incl = head(block, p)
+            if incl > max_record or frac >= ticks:
+                need = 0
+                break
+            q = p + 16 + incl
+            if q > size:
+                need = 16 + incl
+                break
+            n += 1
+            if incl >= 12:
+                secs, usecs, event = rtac(block, p + 16)
                 d2 = by_event[event]
-                if d2 is None:
-                    break
-                if secs or usecs:  # the RTAC time: below 2**32 s when its microseconds are sane
-                    if usecs >= 1_000_000:
-                        break
-                    t = secs + usecs / 1e6
-                else:
-                    t2 = seconds(block, p)[0] + frac * unit
-                    if not t2 < max_time:  # >= 0
-                        break
-                    t = t2
-                n, d, good = n + 1, d2, p
-                if incl > 12:
-                    yield new_chunk(t, d, block[b + 12:q])
-                p = q
-            if d is not None:
-                w.n, w.last, w.clock.last, w.last_sec = n, d, t, seconds(block, good)[0]
-            buf.advance(p - start)
-        more, packet = _pcap_record(w)
+                t2 = secs + usecs / 1e6 if secs or usecs else seconds(block, p)[0] + frac * unit
+                if d2 is not None and usecs < 1_000_000 and t2 < max_time and t2 + tol >= last:
+                    d, good = d2, p
+                    t = last = t2
+                    if incl > 12:
+                        yield new(t, d, block[p + 28:q])
+                    p = q
+                    continue
+            # any other packet: _chunk says what it is
+            sec = seconds(block, p)[0]
+            w.n, w.last, w.clock.last, w.last_sec, w.timeline.last = n, d, t, sec, last
+            where = f"{w.src.at(buf.offset + p - start)} (record {n})"
+            buf.advance(q - start)
+            if (chunk := _chunk(w, where, sec + frac * unit, block[p + 16:q])) is not None:
+                yield chunk
+            need = -1
+            break
+        if need < 0:
+            continue
+        w.n, w.last, w.clock.last, w.timeline.last = n, d, t, last
+        if good >= 0:
+            w.last_sec = seconds(block, good)[0]
+        buf.advance(p - start)
+        if need and len(buf.peek(need)) >= need:
+            continue  # read on: the record is in the block now
+        more, chunk = _pcap_record(w)  # damage, or the file ends inside a record
+        if chunk is not None:
+            yield chunk
         if not more:
             return
-        if packet is not None and (chunk := _chunk(w, *packet)) is not None:
-            yield chunk
 
 
-def _pcap_record(w: _Walk) -> tuple[bool, _Packet | None]:
-    """One pcap record read carefully: (False, None) at the end of the file, else (True, its packet, or
-    None after damage: reported, and the walk moved to the next plausible record)."""
+def _pcap_record(w: _Walk) -> tuple[bool, Chunk | None]:
+    """One pcap record where the walk's loop stops (damage, the file's end): (False, None) at the end of
+    the file, else (True, its chunk, or None after damage: reported, and the walk moved to the next
+    plausible record)."""
     src, buf = w.src, w.buf
     off = buf.offset
     rec = buf.peek(16)
@@ -299,7 +318,7 @@ def _pcap_record(w: _Walk) -> tuple[bool, _Packet | None]:
     w.last_sec = sec
     data = buf.peek(16 + incl)[16:]
     buf.skip(16 + incl)
-    return True, (where, sec + frac * w.unit, data)
+    return True, _chunk(w, where, sec + frac * w.unit, data)
 
 
 def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
@@ -353,57 +372,71 @@ def _sane_pcap_header(rec: bytes, order: str, ticks: int, near: int) -> bool:
 
 
 def _pcapng_chunks(w: _Walk) -> Iterator[Chunk]:
-    """The chunks of a pcapng file's blocks: the fast walk over the block read while blocks are common
-    (see the module docstring), one careful block where it stops."""
-    buf = w.buf
-    fast = hasattr(buf, "window")  # a buffer without a block (a test's reference) is walked carefully
-    while True:
-        if fast:
-            block, start = buf.window()
-            head, tail, times = _EPB_HEAD[w.order], _EPB_TAIL[w.order], _EPB_TIME[w.order]
-            rtac, units, by_event, max_record = _RTAC_FAST, w.units, w.by_event, _MAX_RECORD
-            n, t, d, known, max_time = w.n, 0.0, None, len(w.units), MAX_TIME
-            p, last = start, len(block) - 28  # the last offset of a whole EPB header
-            if p <= last:
-                block_type, total, iface, cap = head(block, p)
-            while p <= last:  # and then p <= last stays true: each block is checked to end by then
-                q = p + total  # the next block: its header comes with this one's trailing length
-                if (block_type != _BLOCK_EPB or total & 3 or total > max_record or q > last
-                        or not 12 <= cap <= total - 32 or iface >= known or not units[iface]):
+    """The chunks of a pcapng file's blocks, in one walk (see the module docstring). A block's trailing
+    length and the next block's fixed fields are read with one unpack."""
+    buf, new, rtac, max_time, max_record = w.buf, Chunk, _RTAC_FAST, MAX_TIME, _MAX_RECORD
+    while True:  # a turn per reload: after a read, another block (SHB, IDB...), damage, an uncommon packet
+        block, start = buf.window()
+        p, size = start, len(block)
+        if p + 24 > size:
+            need = 24
+        else:
+            head, tail = _EPB_HEAD[w.order], _EPB_TAIL[w.order]
+            units, by_event = w.units, w.by_event
+            known = len(units)
+            n, d, t, last, tol = w.n, w.last, w.clock.last, w.timeline.last, TOLERANCE_S
+            block_type, total, iface, hi, lo, cap = head(block, p)
+            while True:
+                if block_type != _BLOCK_EPB or total & 3 or not 32 <= total <= max_record:
+                    need = 0  # another block, or damage
                     break
-                end, block_type, total_next, iface_next, cap_next = tail(block, q - 4)
-                b = p + 28  # the RTAC header
-                secs, usecs, event = rtac(block, b)
-                d2 = by_event[event]
-                if end != total or d2 is None:
+                q = p + total
+                if q + 24 > size:
+                    need = total + 24  # this block and the next one's fixed fields are not all read
                     break
-                if secs or usecs:  # the RTAC time: below 2**32 s when its microseconds are sane
-                    if usecs >= 1_000_000:
-                        break
-                    t = secs + usecs / 1e6
-                else:
-                    hi, lo = times(block, p + 12)
-                    t2 = ((hi << 32) | lo) * units[iface]
-                    if not t2 < max_time:  # >= 0
-                        break
-                    t = t2
-                n, d = n + 1, d2
-                if cap > 12:
-                    yield new_chunk(t, d, block[b + 12:b + cap])
-                p, total, iface, cap = q, total_next, iface_next, cap_next
-            if d is not None:
-                w.n, w.last, w.clock.last = n, d, t
+                end, next_type, next_total, next_iface, next_hi, next_lo, next_cap = tail(block, q - 4)
+                if end != total:
+                    need = 0
+                    break
+                n += 1
+                if iface < known and (unit := units[iface]) and 12 <= cap <= total - 32:
+                    secs, usecs, event = rtac(block, p + 28)
+                    d2 = by_event[event]
+                    t2 = secs + usecs / 1e6 if secs or usecs else ((hi << 32) | lo) * unit
+                    if d2 is not None and usecs < 1_000_000 and t2 < max_time and t2 + tol >= last:
+                        d = d2
+                        t = last = t2
+                        if cap > 12:
+                            yield new(t, d, block[p + 40:p + 28 + cap], None)
+                        p = q
+                        block_type, total, iface, hi, lo, cap = (next_type, next_total, next_iface, next_hi,
+                                                                 next_lo, next_cap)
+                        continue
+                # any other packet: _epb_chunk says what it is
+                w.n, w.last, w.clock.last, w.timeline.last = n, d, t, last
+                where = f"{w.src.at(buf.offset + p - start)} (block {n})"
+                buf.advance(q - start)
+                if (chunk := _epb_chunk(w, where, block[p + 8:q - 4])) is not None:
+                    yield chunk
+                need = -1
+                break
+            if need < 0:
+                continue
+            w.n, w.last, w.clock.last, w.timeline.last = n, d, t, last
             buf.advance(p - start)
-        more, packet = _pcapng_block(w)
+        if need and len(buf.peek(need)) >= need:
+            continue  # read on: the block is in the block read now
+        more, chunk = _pcapng_block(w)  # another block type, damage, or the file ends near a block
+        if chunk is not None:
+            yield chunk
         if not more:
             return
-        if packet is not None and (chunk := _chunk(w, *packet)) is not None:
-            yield chunk
 
 
-def _pcapng_block(w: _Walk) -> tuple[bool, _Packet | None]:
-    """One pcapng block read carefully: (False, None) at the end of the file, else (True, its packet,
-    or None: a block without one, or damage: reported, and the walk moved to the next plausible block)."""
+def _pcapng_block(w: _Walk) -> tuple[bool, Chunk | None]:
+    """One pcapng block where the walk's loop stops (another block type, damage, the file's end):
+    (False, None) at the end of the file, else (True, its chunk, or None: a block without one, or damage:
+    reported, and the walk moved to the next plausible block)."""
     src, buf = w.src, w.buf
     off = buf.offset
     head = buf.peek(12)
@@ -449,7 +482,10 @@ def _pcapng_block(w: _Walk) -> tuple[bool, _Packet | None]:
     if is_shb:
         w.interfaces, w.units = [], []
         return True, None
-    return True, _packet(w, where, block_type, block[8:-4])
+    if block_type == _BLOCK_EPB:  # one too short for its fixed fields (the walk's loop takes the others)
+        return True, _epb_chunk(w, where, block[8:-4])
+    packet = _packet(w, where, block_type, block[8:-4])
+    return True, None if packet is None else _chunk(w, *packet)
 
 
 def _bad_block_length(total: int, least: int) -> str | None:
@@ -461,12 +497,16 @@ def _bad_block_length(total: int, least: int) -> str | None:
 
 def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int | None:
     """The file offset of the next whole pcapng block at or after ``start`` in ``window`` (which starts
-    at file offset ``base``; blocks are 4-byte aligned): a plausible length repeated at its end."""
+    at file offset ``base``; blocks are 4-byte aligned): a block type the format defines and a plausible
+    length repeated at its end (an EPB's captured and original lengths of 12 would otherwise read as a
+    12-byte block inside it)."""
     first = start - base
     first += -first % 4
     for p in range(first, len(window) - 11, 4):
         is_shb = window[p:p + 4] == _SHB
         orders = ("<", ">") if is_shb else (order,)
+        if not is_shb and struct.unpack_from(order + "I", window, p)[0] not in _BLOCK_TYPES:
+            continue
         for o in orders:
             total = struct.unpack_from(o + "I", window, p + 4)[0]
             if total > _RESYNC_MAX or _bad_block_length(total, 28 if is_shb else 12) is not None:
@@ -477,50 +517,61 @@ def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int |
 
 
 def _packet(w: _Walk, where: str, block_type: int, body: bytes) -> _Packet | None:
-    """The packet of one pcapng block (None for a block that carries none, or a damaged one: reported)."""
-    report, order, interfaces = w.src.report, w.order, w.interfaces
+    """The packet of one pcapng block other than an EPB (None for a block that carries none, or a damaged
+    one: reported)."""
+    report, order = w.src.report, w.order
     if block_type == _BLOCK_IDB:
         if len(body) < 8:
             report.problem(where, f"interface description block body of {len(body)} byte(s), shorter than "
-                                  f"its 8 fixed bytes: interface {len(interfaces)} is unusable")
+                                  f"its 8 fixed bytes: interface {len(w.interfaces)} is unusable")
             w.interface(-1, 1e-6)
             return None
         linktype = struct.unpack(order + "H", body[:2])[0]
         w.interface(linktype, _tsresol(body[8:], order))
         return None
-    if block_type not in (_BLOCK_EPB, _BLOCK_SPB):
+    if block_type != _BLOCK_SPB:
         return None
-    if block_type == _BLOCK_EPB:
-        if len(body) < 20:
-            report.problem(where, f"enhanced packet block body of {len(body)} byte(s), shorter than its 20 "
-                                  f"fixed bytes: skipped", nbytes=len(body))
-            return None
-        iface, hi, lo, cap, _orig = struct.unpack(order + "IIIII", body[:20])
-        if cap > len(body) - 20:
-            report.problem(where, f"captured length {cap} is larger than the {len(body) - 20} byte(s) of "
-                                  f"packet data in its block: skipped", nbytes=len(body) - 20)
-            return None
-        data = body[20:20 + cap]
-    else:
-        if len(body) < 4:
-            report.problem(where, f"simple packet block body of {len(body)} byte(s), shorter than its 4 "
-                                  f"fixed bytes: skipped", nbytes=len(body))
-            return None
-        iface, hi, lo = 0, 0, 0
-        data = body[4:4 + struct.unpack(order + "I", body[:4])[0]]
-    if iface >= len(interfaces):
+    if len(body) < 4:
+        report.problem(where, f"simple packet block body of {len(body)} byte(s), shorter than its 4 "
+                              f"fixed bytes: skipped", nbytes=len(body))
+        return None
+    data = body[4:4 + struct.unpack(order + "I", body[:4])[0]]
+    return (where, None, data) if _serial(w, where, 0, data) else None
+
+
+def _epb_chunk(w: _Walk, where: str, body: bytes) -> Chunk | None:
+    """The chunk of one enhanced packet block's body (None: none, or damage: reported)."""
+    report = w.src.report
+    if len(body) < 20:
+        report.problem(where, f"enhanced packet block body of {len(body)} byte(s), shorter than its 20 "
+                              f"fixed bytes: skipped", nbytes=len(body))
+        return None
+    iface, hi, lo, cap, _orig = struct.unpack(w.order + "IIIII", body[:20])
+    if cap > len(body) - 20:
+        report.problem(where, f"captured length {cap} is larger than the {len(body) - 20} byte(s) of "
+                              f"packet data in its block: skipped", nbytes=len(body) - 20)
+        return None
+    data = body[20:20 + cap]
+    if not _serial(w, where, iface, data):
+        return None
+    return _chunk(w, where, ((hi << 32) | lo) * w.interfaces[iface][1], data)
+
+
+def _serial(w: _Walk, where: str, iface: int, data: bytes) -> bool:
+    """Is ``iface`` a declared serial interface? (Else its packet is reported or counted unread.)"""
+    report = w.src.report
+    if iface >= len(w.interfaces):
         report.problem(where, f"packet on undeclared interface {iface}", nbytes=len(data))
-        return None
-    linktype, unit = interfaces[iface]
+        return False
+    linktype = w.interfaces[iface][0]
     if linktype not in SERIAL_LINKTYPES:
         if iface not in w.warned:
             w.warned.add(iface)
             report.problem(where, f"interface {iface} has link type {linktype}, not serial "
                                   f"(250/147): its packets are skipped")
         report.unread_bytes += len(data)
-        return None
-    t = ((hi << 32) | lo) * unit if block_type == _BLOCK_EPB else None
-    return where, t, data
+        return False
+    return True
 
 
 def _tsresol(options: bytes, order: str) -> float:

@@ -13,39 +13,38 @@ start with ``000`` is read that way, the first other nine-digit fraction switche
 socat's own diagnostics (``2024/05/01 10:00:00 socat[123] N ...``) are skipped. socat counts each
 direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``length=``, or a
 ``from=`` past where that side's previous transfer ended (transfers lost), is reported. A restarted
-socat appending to the same log starts again at ``from=0``, which is accepted. The reader is a line
-tokenizer (``tokenize``: what a line is) and a chunk builder (``_Transfers``: one chunk per transfer,
-handed on in bounded pieces; ``length=`` beyond 16 MiB is damage).
+socat appending to the same log starts again at ``from=0``, which is accepted. A header whose time is
+more than a second before the one before it is reported too (``timeline``: the clock was set back).
 
-Speed: the file is read in blocks of ``BLOCK`` characters (``_Lines``: never the whole file), cut into
-the very lines ``Source.lines`` gives. At the start of a line, when no transfer or a hex one is being
-read, a fast path (``_Transfers.run``) reads whole clean transfers, one match of one regular expression
-each (``_FAST``, ``_FAST_CRLF``: a header with a time, then one -x hex line or the -x -v rows and
-``--``), doing what ``step`` would do with their lines: the body's bytes by ``bytes.fromhex`` checked
-against ``bytes.hex`` (lower case, single spaces: what ``_HEX`` reads), -x -v rows by ``_HEX`` itself,
-short bodies remembered (a conversation repeats itself); the time as the last header's whole second
-(``wallclock``) plus the fraction, computed as ``wallclock`` computes it, the 9-digit quirk included;
-the counters. It stops, before changing anything, at the first transfer that is not plainly clean (a
-count other than ``length=``, counters that do not go on, a time that is not a socat one, impossible
-or near the end of the range, a line longer than ``MAX_LINE``, a transfer a block end cuts: it reads
-ahead and goes on) and the line-by-line code reads that line, so chunks, times (bit for bit), messages
-and line numbers are the same. A fast run that reads nothing makes the next wait (-v dumps). -v text is
-decoded a run of characters at a time.
+One parser: the file is read in blocks of ``BLOCK`` characters (``_Lines``: never the whole file), cut
+into lines (numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number).
+Each line is classified (``tokenize``: what a line is) and acted on by the transfer builder
+(``_Transfers``: one chunk per transfer, handed on in bounded pieces; ``length=`` beyond 16 MiB is
+damage), whatever the dump's style and state. ``_Transfers.read`` takes the lines that make up almost
+every dump itself, before any other classification: a header and the hex row after it, matched at once
+(``_HEADER_ROW``; the match fails at once on any other line), then ``_header``'s checks (counters,
+length, time) done in place; a further hex row (a leading space). A hex row's bytes come from
+``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them), else
+from ``_HEX`` itself; short rows are remembered (a conversation repeats itself). Every other line, and
+any line while -v text is being read, goes through ``step``, which does the same for every kind. A
+header's time is its minute's start (``wallclock``, remembered) plus its seconds and fraction, computed
+as ``wallclock`` computes it. -v text is decoded a run of characters at a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import math
 import re
 from collections.abc import Generator, Iterator
-from typing import Any, Final
+from typing import Final
 
 from xac1_proto.chunk import Chunk, Direction
 
 from . import base as _base
 from .base import MAX_TIME, MIN_TIME, Clock, Report, Sides, Source, shown, wallclock
+from .timeline import TOLERANCE_S, Timeline
 
 FORMAT: Final = "socat"
 DESCRIPTION: Final = "socat -x / -v / -x -v dump"
@@ -55,49 +54,27 @@ SUFFIXES: Final = (".socat",)
 _HEADER: Final = re.compile(
     r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?"
     r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})")
+_HEADER_LINE: Final = re.compile(_HEADER.pattern + r"(.*)", re.DOTALL)  # and what follows on the line
+# _HEADER with what follows on its line (CR included) and, when it starts with a space, the next line;
+# the date and the minute are taken as any characters (a quicker match) and checked by _MINUTE when
+# they change (in latin-1 text ``\\d`` is ``[0-9]``)
+_HEADER_ROW: Final = re.compile(
+    r"([<>]) (?:(.{10}) (.{5}):([0-9]{2})(?:\.([0-9]+))?\s+)?"
+    r"length=([0-9]{1,18}) from=([0-9]{1,18}) to=([0-9]{1,18})([^\n]*)\n(?:( [^\n]*)\n)?")
+_MINUTE: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d")
+_POWERS: Final = tuple(10 ** n for n in range(13))
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
 _MAX_TRANSFER: Final = 1 << 24  # socat -b sets the transfer size (8192 by default); more is damage
 _SPILL: Final = 1 << 16  # bytes of one transfer held before they are handed on
 _ESCAPES: Final = {"r": 0x0D, "n": 0x0A, "\\": 0x5C, "a": 0x07, "b": 0x08, "v": 0x0B, "f": 0x0C,
                    "t": 0x09, "e": 0x1B}
+_KNOWN: Final = 4096  # hex rows remembered (their text -> their bytes)
+_KNOWN_TEXT: Final = 160  # characters of the longest row remembered
+_TEXT: Final = "text"  # a transfer's mode: -v text (None: not known yet; "hex": hex rows)
+_HEXMODE: Final = "hex"
 
 BLOCK = 1 << 16  # characters read at once (a test makes it tiny so that block ends fall everywhere)
-_FAST_MAX: Final = 4096  # longest transfer the fast path reads (its -x hex line is shorter than MAX_LINE)
-# A clean transfer at the start of a line: a header with a time and fraction, then its body (group 7):
-# either one -x hex line, then a line that is no -x -v row nor ``--`` (group 8 None; a block end is no
-# line: read on), or -x -v rows and the ``--`` that ends them (group 8); LF or CRLF line ends (a
-# regular expression each: ``\r?`` costs). The time (group 2) is checked by _STAMP when it changes,
-# the body by the caller.
-_FAST_HEADER: Final = (r"([<>]) (.{19})\.([0-9]{1,12})  length=([0-9]{1,18}) from=([0-9]{1,18}) "
-                       r"to=([0-9]{1,18})")
-_FAST: Final = re.compile(_FAST_HEADER + r"\n( [^\n]*\n(?=[^ -])|(?: [^\n]*\n)+(--\n))")
-_FAST_CRLF: Final = re.compile(_FAST_HEADER + r"\r\n( [^\n]*\n(?=[^ -])|(?: [^\n]*\n)+(--\r\n))")
-_STAMP: Final = re.compile(r"[0-9]{4}/[0-9]{2}/[0-9]{2} [0-9]{2}:[0-9]{2}:[0-9]{2}")
-_POWERS: Final = tuple(10 ** n for n in range(13))
-# after this many fast runs in a row read nothing (a -v dump, damage), the next waits 2, 4... lines
-_FAST_TRIES: Final = 16
-_FAST_WAIT: Final = 10  # at most 2 ** this many lines
-# what a fast run did: read nothing; read transfers up to one it leaves to ``step``; read all it matched
-_READ_NONE: Final = 0
-_READ_SOME: Final = 1
-_READ_ALL: Final = 2
-_KNOWN: Final = 4096  # transfer bodies remembered (their text -> their bytes)
-_KNOWN_TEXT: Final = 160  # characters of the longest body remembered
-
-
-def _chunk_slots() -> tuple[Any, ...] | None:
-    """``Chunk.__new__`` and the setters of its slots ``t``, ``dir``, ``data``, ``error``: the fast path
-    builds chunks with them, a third cheaper than the frozen dataclass's ``__init__`` (which calls
-    ``object.__setattr__`` for each field) and the very same object. None (no fast path) if ``Chunk``
-    is not that plain dataclass any more."""
-    names = tuple(f.name for f in dataclasses.fields(Chunk))
-    plain = names == ("t", "dir", "data", "error") and getattr(Chunk, "__slots__", None) == names and \
-        not hasattr(Chunk, "__post_init__")
-    return (Chunk.__new__, *(getattr(Chunk, n).__set__ for n in names)) if plain else None
-
-
-_CHUNK_SLOTS: Final = _chunk_slots()
 
 
 def sniff(head: list[str]) -> int:
@@ -107,21 +84,19 @@ def sniff(head: list[str]) -> int:
 
 
 class _Clock:
-    """Turns a header's date, time and fraction into unix seconds, handling the 9-digit quirk."""
+    """The 9-digit quirk: which fractions of a second are microseconds behind ``000``."""
 
     def __init__(self) -> None:
         self.nanoseconds = False
 
-    def __call__(self, date: str | None, clock: str | None, frac: str | None) -> float | None:
-        if date is None or clock is None:
-            return None
-        frac = frac or ""
+    def fraction(self, frac: str) -> str:
+        """A header's fraction digits as read: ``000`` and six digits are microseconds until a file shows
+        another nine-digit fraction (nanoseconds from then on)."""
         if len(frac) == 9 and not self.nanoseconds:
             if frac.startswith("000"):
-                frac = frac[3:]
-            else:
-                self.nanoseconds = True
-        return wallclock(date, f"{clock}.{frac}" if frac else clock)
+                return frac[3:]
+            self.nanoseconds = True
+        return frac
 
 
 # line kinds of the tokenizer
@@ -148,26 +123,7 @@ def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     builder = _Transfers(src, Sides(FORMAT, host_is, (">", "<")))
     lines = _Lines(src)
-    misses = wait = 0  # fast runs in a row that read nothing; lines to read before trying again
-    while True:
-        if wait:
-            wait -= 1
-        elif not lines.continued and builder.ready():
-            ran = yield from builder.run(lines)
-            if ran == _READ_NONE:
-                misses += 1
-                wait = 1 << min(misses - _FAST_TRIES, _FAST_WAIT) if misses > _FAST_TRIES else 0
-            else:
-                misses = 0
-                if ran == _READ_ALL:
-                    continue  # on from where it stopped, after reading ahead if it was the block end
-        piece = lines.next()
-        if piece is None:
-            break
-        number, text = piece
-        rest: str | None = text
-        while rest is not None:
-            rest = yield from builder.step(number, rest)
+    yield from builder.read(lines)
     yield from builder.end(lines.number)
 
 
@@ -234,168 +190,264 @@ class _Lines:
             return self.number, buf[pos:end].rstrip("\r\n")
 
 
+class _Transfer:
+    """The transfer being read: its header's line, direction, time and ``length=``, its bytes held (not
+    handed on yet), how many were handed on, and its mode (None until its first data line)."""
+
+    __slots__ = ("line", "dir", "t", "length", "data", "sent", "mode")
+
+    def __init__(self, line: int, d: Direction, t: float | None, length: int) -> None:
+        self.line = line
+        self.dir = d
+        self.t = t
+        self.length = length
+        self.data = bytearray()
+        self.sent = 0
+        self.mode: str | None = None
+
+    @property
+    def got(self) -> int:
+        """Bytes read so far (handed on and held)."""
+        return self.sent + len(self.data)
+
+    def spill(self) -> Chunk | None:
+        """The bytes held of a long transfer, handed on (memory stays bounded whatever ``length=``
+        says), or None while they are few."""
+        data = self.data
+        if len(data) < _SPILL:
+            return None
+        self.sent += len(data)
+        chunk = Chunk(self.t, self.dir, bytes(data))
+        data.clear()
+        return chunk
+
+
 class _Transfers:
-    """The chunk builder: turns the tokenized lines into one chunk per transfer (long transfers in
-    bounded pieces), checking ``length=`` and the counters."""
+    """The chunk builder: turns the classified lines into one chunk per transfer (long transfers in
+    bounded pieces), checking ``length=``, the counters and the times."""
 
     def __init__(self, src: Source, sides: Sides) -> None:
         self.src = src
         self.report = src.report
         self.sides = sides
+        self.dirs: dict[str, Direction] = {}
+        for mark in (">", "<"):
+            d = sides.direction(mark)
+            assert d is not None
+            self.dirs[mark] = d
         self.clock = _Clock()
         self.times = Clock(src.report)
-        # the transfer being read: line, direction, t, length, data, sent, mode "hex"/"text"/None
-        self.cur: dict | None = None
+        self.timeline = Timeline(src.report)
+        self.cur: _Transfer | None = None  # the transfer being read
         self.text_bytes = 0
         self.following: dict[str, int] = {}  # side name -> the from= its next transfer should have
-        # the fast path's memory: the last whole second (header text, wallclock), the transfer bodies
-        # read (text -> bytes), the length= of each byte count up to the longest read, each side's
-        # direction
-        self.stamp, self.base = "", 0.0
-        self.known: dict[str, bytes] = {}
-        self.decimal = [""]  # no length= says 0: an empty body is never read
-        self.dirs: dict[str, Direction] = {}
+        # the last header's date and minute (HH:MM), and the minute's start (``wallclock``): seconds in a
+        # minute are linear (time zones change their offset on whole minutes)
+        self.minute: tuple[str, str, float] = ("", "", 0.0)
+        self.known: dict[str, bytes] = {}  # hex rows read (text -> bytes)
 
-    def finish(self, line: int) -> Iterator[Chunk]:
-        rec, self.cur = self.cur, None
-        if rec is None:
-            return
-        if _got(rec) != rec["length"]:
-            self.report.problem(self.src.where(rec["line"]),
-                                f"transfer says length={rec['length']} but its dump holds {_got(rec)} "
-                                f"byte(s) (cut short before line {line})",
-                                nbytes=max(0, rec["length"] - _got(rec)))
-        if rec["data"]:
-            yield Chunk(rec["t"], rec["dir"], bytes(rec["data"]))
-
-    def ready(self) -> bool:
-        """Whether the fast path may read on: no transfer is being read, or a hex one (a header then
-        ends it; never -v text, which could hold a header line)."""
-        cur = self.cur
-        return cur is None or cur["mode"] == "hex"
-
-    def run(self, lines: _Lines) -> Generator[Chunk, None, int]:
-        """The fast path: read the clean transfers that start at ``lines.pos`` (matched by ``_FAST`` or
-        ``_FAST_CRLF``) as ``step`` would read their lines; stop before the first that is not plainly
-        clean, or where none matches. Returns what it did (``_READ_*``). A -x transfer's chunk is held
-        until the next header (more hex rows could follow); when the run stops, it becomes ``cur``."""
-        lines.ahead()
-        m = _FAST.match(lines.buf, lines.pos) or _FAST_CRLF.match(lines.buf, lines.pos)
-        if m is None or lines.max_line < 256 or _CHUNK_SLOTS is None:  # < 256: headers come in pieces
-            return _READ_NONE
-        new, set_t, set_dir, set_data, set_error = _CHUNK_SLOTS
-        buf, pos, match = lines.buf, lines.pos, m.re.match
-        fast_max = min(_FAST_MAX, (lines.max_line - 3) // 3)
-        following, known, decimal = self.following, self.known, self.decimal
-        dirs = self.dirs or self._directions()
-        nanoseconds, stamp0, base0, powers = self.clock.nanoseconds, self.stamp, self.base, _POWERS
-        last: Chunk | None = None  # the last transfer read
-        held = False  # it is a -x transfer, not handed on yet
-        cur_open = self.cur is not None
-        found: re.Match[str] | None = m
-        while found is not None:
-            mark, stamp, frac, length_s, start_s, end_s, body, rows = found.groups()
-            data = known.get(body) or self._body(body, rows is not None, fast_max, lines.max_line)
-            length, start = len(data), int(start_s)
-            if decimal[length] != length_s or int(end_s) - start + 1 != length or \
-                    start != following.get(mark, start) and start:
-                break  # not hex as socat writes it, a count other than length=, counters that do not go on
-            if stamp != stamp0:
-                second = _second(stamp)
-                if second is None:
-                    break
-                stamp0, base0 = stamp, second
-            digits = len(frac)
-            if digits == 9 and not nanoseconds:
-                if frac.startswith("000"):
-                    frac, digits = frac[3:], 6
+    def read(self, lines: _Lines) -> Iterator[Chunk]:
+        """Every line of the file: the common ones taken here, the others by ``step`` (see the module
+        docstring). A header line and the line after it, when that starts with a space (a hex row), are
+        matched at once (``_HEADER_ROW``). The transfer they make is
+        held in locals (its bytes, not copied) until the next line shows whether more rows follow; it
+        becomes ``cur`` before anything else reads the state. The position in the file, the line number
+        and the last time are locals too, handed to ``lines`` and the clocks before anything else."""
+        header_row, known, max_line, following = _HEADER_ROW.match, self.known, lines.max_line, self.following
+        dirs, timeline, tol, powers = self.dirs, self.timeline, TOLERANCE_S, _POWERS
+        new = Chunk
+        day, minute, base = self.minute
+        held: bytes | None = None  # the bytes of the transfer held (None: none is)
+        h_line, h_dir, h_t, h_length = 0, dirs[">"], None, 0
+        buf, pos, number, continued = lines.buf, lines.pos, lines.number, lines.continued
+        last_t = timeline.last  # the time of the last header read here (times.last too, when it was one)
+        while True:
+            piece: tuple[int, str] | None = None
+            m = header_row(buf, pos)  # the most common line: fails at once on any other
+            if m is None:
+                first = buf[pos:pos + 1]
+            else:
+                first = ""
+                cur = self.cur
+                if ((after := m.end()) - pos < max_line or m.end(9) - pos < max_line) and not continued \
+                        and (held is not None or cur is None or cur.mode is not _TEXT):
+                    mark, date, hhmm, ss, frac, length_s, start_s, end_s, tail, row = m.groups()
+                    if date is not None and (hhmm != minute or date != day) and \
+                            _MINUTE.fullmatch(f"{date} {hhmm}") is None:
+                        m = None  # not a header as _HEADER reads one: step says what it is
                 else:
-                    nanoseconds = True  # no check follows: the transfer is read
-            # clean: read as step would read it
-            following[mark] = start + length
-            if held:
-                yield last  # type: ignore[misc]
-            elif cur_open:
-                cur_open = False
-                yield from self.finish(lines.number + 1)
-            last = new(Chunk)
-            set_t(last, base0 + int(frac) / powers[digits])
-            set_dir(last, dirs[mark])
-            set_data(last, data)
-            set_error(last, None)
-            if rows is None:
-                held = True
-            else:  # -x -v: ``--`` ended it
-                held = False
-                yield last
-            found = match(buf, pos := found.end())
-        self.clock.nanoseconds, self.stamp, self.base = nanoseconds, stamp0, base0
-        if last is None:
-            return _READ_NONE
-        self._stop(lines, pos, last, held)
-        return _READ_ALL if found is None else _READ_SOME
+                    m = None
+                if m is not None:
+                    number += 1
+                    if after - pos < max_line or row is not None and len(row) < max_line:
+                        pos = after  # (both lines shorter than MAX_LINE: pieces are read by step)
+                    else:
+                        row = None
+                        pos = m.end(9) + 1
+                    if held is not None:  # the transfer before ends
+                        if len(held) == h_length:
+                            yield new(h_t, h_dir, held)
+                        else:
+                            self._hold(h_line, h_dir, h_t, h_length, held)
+                            if (chunk := self.finish(number)) is not None:
+                                yield chunk
+                        held = None
+                    elif self.cur is not None and (chunk := self.finish(number)) is not None:
+                        yield chunk
+                    length, start, end = int(length_s), int(start_s), int(end_s)
+                    if end - start + 1 != length or length > _MAX_TRANSFER or \
+                            mark in following and start != following[mark] and start != 0:
+                        length = self._damaged_header(number, mark, length, start, end)
+                    else:
+                        following[mark] = start + length
+                    t = None
+                    if date is not None:
+                        if frac is None or len(frac) > 6 or hhmm != minute or date != day:
+                            self._clocks(last_t)
+                            t = self._time(number, date, f"{hhmm}:{ss}", frac)
+                            day, minute, base = self.minute
+                            last_t = timeline.last
+                        else:  # as wallclock computes it: the whole second (in range), the fraction
+                            t = base + int(ss) + int(frac) / powers[len(frac)]
+                            if t + tol < last_t:
+                                timeline.last = last_t
+                                timeline.check(t, self.src.where(number))
+                            last_t = t
+                    if tail and not tail.isspace():
+                        self.report.problem(self.src.where(number), f"unexpected text after the header: "
+                                                                    f"{shown(tail.strip())}")
+                    if row is not None:
+                        number += 1
+                        if row[-1:] == "\r":
+                            row = row.rstrip("\r")
+                        data = known.get(row)
+                        if data is None:
+                            data = self._hex_row(row)
+                        if data:
+                            held, h_line, h_dir, h_t, h_length = data, number - 1, dirs[mark], t, length
+                            continue
+                        piece = number, row  # no hex row: step reads it
+                    self.cur = _Transfer(number - (row is not None), dirs[mark], t, length)
+                    if piece is None:
+                        continue
+            if held is not None:  # another line: the transfer held becomes the state step reads
+                self._hold(h_line, h_dir, h_t, h_length, held)
+                held = None
+            cur = self.cur
+            if piece is None and first == " " and cur is not None and cur.mode is not _TEXT and not continued:
+                nl = buf.find("\n", pos, pos + max_line)
+                if nl >= 0:
+                    text = buf[pos:nl]
+                    if text[-1:] == "\r":
+                        text = text.rstrip("\r")
+                    data = known.get(text)
+                    if data is None:
+                        data = self._hex_row(text)
+                    pos, number = nl + 1, number + 1
+                    if data:
+                        cur.mode = _HEXMODE
+                        cur.data += data
+                        if len(cur.data) >= _SPILL and (chunk := cur.spill()) is not None:
+                            yield chunk
+                        continue
+                    piece = number, text
+            # anything else: lines and the clocks as read so far, then step
+            lines.pos, lines.number = pos, number
+            self._clocks(last_t)
+            if piece is None:
+                piece = lines.next()
+                if piece is None:
+                    return
+            line_number, line = piece
+            rest: str | None = line
+            while rest is not None:
+                rest = yield from self.step(line_number, rest)
+            day, minute, base = self.minute
+            buf, pos, number, continued = lines.buf, lines.pos, lines.number, lines.continued
+            last_t = timeline.last
 
-    def _stop(self, lines: _Lines, pos: int, last: Chunk, held: bool) -> None:
-        """The end of a fast run that read transfers: lines read, the last time, a held -x transfer
-        made ``cur``."""
-        lines.number += lines.buf.count("\n", lines.pos, pos)
-        lines.pos = pos
-        self.times.last = last.t
-        if held:
-            self.cur = {"line": lines.number - 1, "dir": last.dir, "t": last.t, "length": len(last.data),
-                        "data": bytearray(last.data), "sent": 0, "mode": "hex"}
+    def _clocks(self, last: float) -> None:
+        """The last good time (``read`` holds it), handed to the clocks (the same time for both: none yet
+        is -inf to the timeline and None to ``times``)."""
+        self.timeline.last = last
+        self.times.last = None if last == -math.inf else last
 
-    def _directions(self) -> dict[str, Direction]:
-        if not self.dirs:
-            for mark in (">", "<"):
-                d = self.sides.direction(mark)
-                assert d is not None
-                self.dirs[mark] = d
-        return self.dirs
+    def _hold(self, line: int, d: Direction, t: float | None, length: int, data: bytes) -> None:
+        """A transfer read by ``read`` (a header and a hex row) becomes the transfer being read."""
+        cur = self.cur = _Transfer(line, d, t, length)
+        cur.mode = _HEXMODE
+        cur.data += data
 
-    def _body(self, body: str, rows: bool, fast_max: int, max_line: int) -> bytes:
-        """The bytes of a transfer's body (the -x hex line or the -x -v rows, line ends included) if it
-        is exactly what ``step`` reads as that many bytes (at most ``fast_max``), else empty; short
-        bodies are remembered."""
-        data = _rows(body, max_line) if rows else _hex_line(body, fast_max)
-        if len(data) > fast_max:
-            return b""
-        decimal = self.decimal
-        decimal.extend(str(n) for n in range(len(decimal), len(data) + 1))
-        if len(body) <= _KNOWN_TEXT:
+    def _damaged_header(self, number: int, mark: str, length: int, start: int, end: int) -> int:
+        """A header whose counters or length are wrong: reported; the length read (at most 16 MiB)."""
+        where = self.src.where(number)
+        _check_counters(mark, length, start, end, self.following, self.report, where)
+        if length > _MAX_TRANSFER:
+            self.report.problem(where, f"length={length} is not plausible for one transfer (expected at most "
+                                       f"{_MAX_TRANSFER}); read as that")
+            length = _MAX_TRANSFER
+        return length
+
+    def _hex_row(self, text: str) -> bytes:
+        """The bytes of a hex row as ``_HEX`` reads them (empty: not a hex row); short rows remembered."""
+        try:
+            data = bytes.fromhex(text[1:])
+        except ValueError:
+            data = b""
+        if not data or data.hex(" ") != text[1:]:  # not plain: as _HEX reads it, if it does
+            hm = _HEX.fullmatch(text)
+            data = bytes.fromhex(hm.group(1)) if hm else b""
+        if len(text) <= _KNOWN_TEXT:
             if len(self.known) >= _KNOWN:
                 self.known.clear()
-            self.known[body] = data
+            self.known[text] = data
         return data
+
+    def finish(self, line: int) -> Chunk | None:
+        """End the transfer being read: its last bytes as a chunk (None: none), a short dump reported."""
+        rec, self.cur = self.cur, None
+        if rec is None:
+            return None
+        got = rec.sent + len(rec.data)
+        if got != rec.length:
+            self.report.problem(self.src.where(rec.line),
+                                f"transfer says length={rec.length} but its dump holds {got} "
+                                f"byte(s) (cut short before line {line})",
+                                nbytes=max(0, rec.length - got))
+        return Chunk(rec.t, rec.dir, bytes(rec.data)) if rec.data else None
 
     def step(self, number: int, text: str) -> Generator[Chunk, None, str | None]:
         """Read one line or the rest of one; returns (as the generator's value) a rest still to read."""
         cur = self.cur
-        if cur is not None and cur["mode"] == "text" and _got(cur) < cur["length"] and \
-                not (_got(cur) == 0 and _HEADER.match(text)):  # else an empty-looking transfer
+        if cur is not None and cur.mode == _TEXT and cur.got < cur.length and \
+                not (cur.got == 0 and _HEADER.match(text)):  # else an empty-looking transfer
             return (yield from self._text(number, text))
         kind, m = tokenize(text)
         if kind == HEADER:
+            if (chunk := self.finish(number)) is not None:
+                yield chunk
+            m = _HEADER_LINE.match(text)
             assert m is not None
-            yield from self.finish(number)
-            self._header(number, m, text)
+            self._header(number, m)
         elif kind in (END, DIAG):
-            if kind == END or cur is None or cur["mode"] != "text":
-                yield from self.finish(number)
+            chunk = self.finish(number) if kind == END or cur is None or cur.mode != _TEXT else None
+            if chunk is not None:
+                yield chunk
         elif kind == BLANK:
-            if cur is not None and cur["mode"] is None:
-                cur["mode"] = "text"
+            if cur is not None and cur.mode is None:
+                cur.mode = _TEXT
                 return text
         elif cur is None:
             self.report.problem(self.src.where(number), f"not a socat header, data or log line: "
                                                         f"{shown(text)}", nlines=1)
-        elif kind == HEXROW and cur["mode"] in (None, "hex"):
+        elif kind == HEXROW and cur.mode in (None, _HEXMODE):
             assert m is not None
-            cur["mode"] = "hex"
-            cur["data"].extend(bytes.fromhex(m.group(1)))
-            yield from _spill(cur)
-        elif cur["mode"] is None:
-            cur["mode"] = "text"
+            cur.mode = _HEXMODE
+            cur.data.extend(bytes.fromhex(m.group(1)))
+            if (chunk := cur.spill()) is not None:
+                yield chunk
+        elif cur.mode is None:
+            cur.mode = _TEXT
             return text
         else:
             self.report.problem(self.src.where(number), f"cannot read this dump line: {shown(text)}",
@@ -408,58 +460,80 @@ class _Transfers:
         assert cur is not None
         consumed, cut = _take_text(text, cur)
         self.text_bytes += consumed
-        yield from _spill(cur)
-        if _got(cur) < cur["length"]:
-            cur["data"].append(0x0A)  # the line end was an LF byte
-            if _got(cur) == cur["length"]:
-                yield from self.finish(number)
+        if (chunk := cur.spill()) is not None:
+            yield chunk
+        if cur.got < cur.length:
+            cur.data.append(0x0A)  # the line end was an LF byte
+            if cur.got == cur.length and (chunk := self.finish(number)) is not None:
+                yield chunk
             return None
-        yield from self.finish(number)
+        if (chunk := self.finish(number)) is not None:
+            yield chunk
         return text[cut:] or None
 
-    def _header(self, number: int, m: re.Match[str], text: str) -> None:
-        report, where = self.report, self.src.where(number)
-        d = self.sides.direction(m.group(1))
-        assert d is not None
-        length, start, end = int(m.group(5)), int(m.group(6)), int(m.group(7))
-        _check_counters(m.group(1), length, start, end, self.following, report, where)
-        if length > _MAX_TRANSFER:
-            report.problem(where, f"length={length} is not plausible for one transfer (expected at "
-                                  f"most {_MAX_TRANSFER}); read as that")
-            length = _MAX_TRANSFER
-        try:
-            t = self.times.check(self.clock(m.group(2), m.group(3), m.group(4)), where)
-        except ValueError as exc:
-            report.problem(where, f"{exc}; the bytes are kept with the previous time")
-            t = self.times.last
-        self.cur = {"line": number, "dir": d, "t": t, "length": length, "data": bytearray(), "sent": 0,
-                    "mode": None}
-        tail = text[m.end():].strip()
-        if tail:
-            report.problem(where, f"unexpected text after the header: {shown(tail)}")
+    def _header(self, number: int, m: re.Match[str]) -> None:
+        """A transfer's header: its counters, length and time checked; it becomes the transfer read."""
+        mark, date, clock, frac, length_s, start_s, end_s, tail = m.groups()
+        length, start, end = int(length_s), int(start_s), int(end_s)
+        following = self.following
+        if end - start + 1 != length or length > _MAX_TRANSFER or \
+                mark in following and start != following[mark] and start != 0:
+            length = self._damaged_header(number, mark, length, start, end)
+        else:
+            following[mark] = start + length
+        t = None if date is None else self._time(number, date, clock, frac)
+        self.cur = _Transfer(number, self.dirs[mark], t, length)
+        if tail and not tail.isspace():
+            self.report.problem(self.src.where(number), f"unexpected text after the header: "
+                                                        f"{shown(tail.strip())}")
+
+    def _time(self, number: int, date: str, clock: str, frac: str | None) -> float | None:
+        """A header's time (``clock``: ``HH:MM:SS``): its whole second plus the fraction, as ``wallclock``
+        computes it, the 9-digit quirk read (``_Clock``); a time that cannot be one, or that runs
+        backwards, is reported (the previous time is kept for the former). The minute's start is
+        remembered when all its seconds are in range (``read`` then computes the next ones itself)."""
+        times = self.times
+        frac = self.clock.fraction(frac or "")
+        hhmm, ss = clock[:5], int(clock[6:])
+        day, minute, base = self.minute
+        if date != day or hhmm != minute or ss >= 60:
+            try:
+                if ss >= 60:
+                    raise ValueError(clock)
+                base = wallclock(date, f"{hhmm}:00")
+            except ValueError:  # said as wallclock says it of the whole time
+                try:
+                    wallclock(date, f"{clock}.{frac}" if frac else clock)
+                except ValueError as exc:
+                    self.report.problem(self.src.where(number), f"{exc}; the bytes are kept with the "
+                                                                f"previous time")
+                return times.last
+            in_range = MIN_TIME <= base < MAX_TIME - 61
+            self.minute = (date, hhmm, base) if in_range else ("", "", 0.0)
+        if frac:
+            digits = frac[:12]
+            t = base + ss + int(digits) / _POWERS[len(digits)]
+        else:
+            t = base + ss + 0.0
+        if not MIN_TIME <= t < MAX_TIME:
+            return times.check(t, self.src.where(number))  # said; the previous time
+        times.last = t
+        timeline = self.timeline
+        if t + TOLERANCE_S < timeline.last:
+            timeline.check(t, self.src.where(number))
+        else:
+            timeline.last = t
+        return t
 
     def end(self, number: int) -> Iterator[Chunk]:
         cur = self.cur
-        if cur is not None and cur["mode"] == "text" and _got(cur) == cur["length"]:
+        if cur is not None and cur.mode == _TEXT and cur.got == cur.length:
             self.src.unterminated = None  # -v text need not end with a newline: length= says it is whole
-        yield from self.finish(number)
+        if (chunk := self.finish(number)) is not None:
+            yield chunk
         if self.text_bytes:
             self.report.note(f"{self.src.name}: socat -v text dump: an unprintable byte shows as '.', so "
                              f"a '.' may stand for another byte (use socat -x -v for exact bytes)")
-
-
-def _got(rec: dict) -> int:
-    """Bytes of a transfer read so far (handed on and held)."""
-    return int(rec["sent"]) + len(rec["data"])
-
-
-def _spill(rec: dict) -> Iterator[Chunk]:
-    """Hand on the bytes held of a long transfer (memory stays bounded whatever ``length=`` says)."""
-    data: bytearray = rec["data"]
-    if len(data) >= _SPILL:
-        yield Chunk(rec["t"], rec["dir"], bytes(data))
-        rec["sent"] += len(data)
-        data.clear()
 
 
 def _check_counters(side: str, length: int, start: int, end: int, following: dict[str, int],
@@ -483,52 +557,11 @@ def _check_counters(side: str, length: int, start: int, end: int, following: dic
     following[side] = start + length
 
 
-def _hex_line(line: str, fast_max: int) -> bytes:
-    """The bytes of a -x hex line (its first space and line end included) if it is what ``_HEX`` reads
-    (lower case, single spaces; ``bytes.hex`` writes it back the same) and short enough for one piece
-    of ``MAX_LINE``, else empty."""
-    if len(line) > 3 * fast_max + 2:
-        return b""
-    text = line[1:].rstrip("\r\n")
-    try:
-        data = bytes.fromhex(text)
-    except ValueError:
-        return b""
-    return data if data.hex(" ") == text else b""
-
-
-def _rows(rows: str, max_line: int) -> bytes:
-    """The bytes of -x -v hex rows (each ending with a line end, then the ``--`` line) as ``step`` reads
-    them with ``_HEX``; empty when a row is not a hex row or they are longer than ``max_line`` (pieces)."""
-    parts = []
-    if len(rows) > max_line:
-        return b""
-    for row in rows.split("\n")[:-2]:
-        hm = _HEX.fullmatch(row.rstrip("\r"))
-        if hm is None:
-            return b""
-        parts.append(hm.group(1))
-    return bytes.fromhex(" ".join(parts))
-
-
-def _second(stamp: str) -> float | None:
-    """Unix seconds of a header's whole second (``YYYY/MM/DD HH:MM:SS``) as ``wallclock`` gives them,
-    or None when it is not plainly good: not that layout, impossible, or near the end of the range
-    ``Clock`` accepts (any fraction added keeps a time of a good second in range)."""
-    if _STAMP.fullmatch(stamp) is None:
-        return None
-    try:
-        base = wallclock(stamp[:10], stamp[11:])
-    except ValueError:
-        return None
-    return base if MIN_TIME <= base < MAX_TIME - 1 else None
-
-
-def _take_text(text: str, rec: dict) -> tuple[int, int]:
+def _take_text(text: str, rec: _Transfer) -> tuple[int, int]:
     """Decode -v text into ``rec['data']`` until its length is reached; returns (bytes, chars used).
     A run of characters without a backslash is copied at once (each character is its latin-1 byte)."""
-    data: bytearray = rec["data"]
-    start, need = len(data), rec["length"] - rec["sent"] - len(data)
+    data = rec.data
+    start, need = len(data), rec.length - rec.sent - len(data)
     i, n = 0, len(text)
     while need > 0 and i < n:
         j = text.find("\\", i, i + need)
