@@ -89,7 +89,9 @@ def _tables() -> str:
               "VIOLATIONS = {"]
     for v in spec.VIOLATION_SPECS:
         lines.append(f"    {v.code!r}: ({v.severity!r}, {v.duty!r},")
-        lines.append(f"        {v.meaning!r}),")
+        pieces = textwrap.wrap(v.meaning, width=90, drop_whitespace=False)  # lines within ruff's 110
+        lines += [f"        {piece!r}" for piece in pieces[:-1]]
+        lines.append(f"        {pieces[-1]!r}),")
     lines += ["}", "", "# the order in which strict parsing checks a frame (the first failure first)",
               "CHECK_ORDER = {"]
     lines += [f"    {code!r}: {n!r}," for code, n in spec.CHECK_ORDER.items()]

@@ -192,7 +192,8 @@ VIOLATIONS = {
     'comm-error-storm': ('error', 'host',
         'a command sent after too many communication errors in a row'),
     'storm-recovery': ('notice', 'host',
-        'an alarm reset, or the first command after a successful one, sent after too many communication errors in a row (our reading: no stated duty)'),
+        'an alarm reset, or the first command after a successful one, sent after too many '
+        'communication errors in a row (our reading: no stated duty)'),
     'error-accepted': ('error', 'device',
         'a normal answer to a command that breaks a stated rule (errors get an alarm answer)'),
     'latch-broken': ('error', 'device',
