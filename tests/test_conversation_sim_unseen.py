@@ -160,3 +160,20 @@ def test_a_reset_that_meets_the_stop_first_still_clears_the_other_alarm():
 
     assert run(b"0%%09\r\n") == ["latch-broken"]
     assert run(b"0RV100\r\n") == []
+
+
+def test_a_new_alarm_after_the_release_is_the_latched_one_not_the_cleared_one():
+    """Alarm 01 latched; the stop pressed; 0%C during it clears 01 (vendor §6); the stop released; a
+    malformed line raises 01 anew: the clean simulator's 01 to the next 0RC is that new latched alarm,
+    never the cleared one coming back (no latch-broken). Found by the CleanSimulator rule machine."""
+    line = Line(SimConfig(time_scale=0))
+    line.send(b"0RP3\n")
+    line.stop(True)
+    line.send(fr.AlarmReset().to_bytes())
+    line.send(fr.WritePoint(n=1, v=1, a=1, o=0, pos=0).to_bytes())
+    line.stop(False)
+    line.send(b"0RP3\n")
+    line.send(fr.ReadCurrent().to_bytes())
+    answers = [v.raw for v in line.verdicts if v.kind == "device-frame"]
+    assert answers[-2:] == [b"0%%01\r\n", b"0%%01\r\n"]
+    assert line.device_side() == []

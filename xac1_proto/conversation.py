@@ -723,6 +723,8 @@ class Conversation:
             k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
         elif code != spec.ALARM_ESTOP and released:  # the stop was released unseen: held or new alarm
             k.under_stop, k.stop_cleared = Fact(), Fact()
+        elif code not in (spec.ALARM_ESTOP, spec.ALARM_NONE):  # a new alarm latched after the stop: what
+            k.stop_cleared = Fact()  # the reset cleared during it is history, this one is the latched one
         if code != spec.ALARM_NONE:
             k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
             if line is None or not line.is_reset:
