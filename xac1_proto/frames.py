@@ -59,6 +59,7 @@ class Frame:
 
     HEADER: ClassVar[str]
     ROLE: ClassVar[spec.Role]
+    check: dataclasses.InitVar[bool] = True  # False: the lenient decoder keeps what it saw (``unchecked``)
 
     @property
     def header(self) -> str:
@@ -80,7 +81,10 @@ class Frame:
     def to_bytes(self) -> bytes:
         return bytes(grammar.STRUCTS[(self.HEADER, self.ROLE)].build(self.fields()))
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, check: bool = True) -> None:
+        """Each field's type and range (``check`` False: none; a lenient decode keeps out-of-range values)."""
+        if not check:
+            return
         fs = self.frame_spec()
         offsets = fs.offsets()
         for name, value in self.fields().items():
@@ -104,10 +108,7 @@ class Frame:
     @classmethod
     def unchecked(cls: type[F], **values: Any) -> F:
         """A frame whose fields are not range-checked: the lenient decoder's way to keep what it saw."""
-        obj = object.__new__(cls)
-        for name, value in values.items():
-            object.__setattr__(obj, name, value)
-        return obj
+        return cls(**values, check=False)
 
     def __str__(self) -> str:
         """``0RP answer N=3 V=9 ...``: the header, the role, each field as on the wire (remembered for

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from ..codec import diagnose
 from ..errors import FrameError
@@ -63,8 +64,9 @@ def _number(name: str, text: str, hex_digit: bool = False) -> int:
     raise UsageError(f"{name} must be a number (decimal, or hex with 0x{digit}), got {text!r}")
 
 
-def _keys(cmd: str, words: list[str], keys: tuple[str, ...]) -> dict[str, int]:
-    values: dict[str, int] = {}
+def _keys(cmd: str, words: list[str], keys: tuple[str, ...]) -> dict[str, Any]:
+    """``KEY=VALUE`` words as a frame's keyword arguments (ints; the frame checks their ranges)."""
+    values: dict[str, Any] = {}
     for word in words:
         key, eq, text = word.partition("=")
         if not eq or key not in keys:
