@@ -143,3 +143,27 @@ def test_a_note_in_a_recording_is_skipped_by_its_readers(tmp_path):
     assert '"type":"note"' in lines[2]
     chunks = list(read_recording(iter(lines), str(path), problems))
     assert [c.data for c in chunks] == [b"0RV\r\n", b"0RV100\r\n"] and problems == []
+
+
+@pytest.mark.slow
+def test_a_note_in_a_pcapng_log_is_a_packet_comment(tmp_path):
+    """``xac1 sim --replay --log FILE.pcapng``: a replay note is an empty status packet whose comment is
+    the note (Wireshark shows it); our reader gives the chunks only, with no problem."""
+    from wireshark_tshark import tshark
+
+    from sniffer.io.pcapng_writer import open_recording
+    from sniffer.io.registry import Capture
+    from xac1_proto.chunk import Chunk
+
+    path = tmp_path / "log.pcapng"
+    log = open_recording(path, "sim", analyze=True)
+    log.write(Chunk(1.0, "host", b"0RV\r\n"))
+    log.note("replay: '0RS' CR LF is not in the rest of the capture", 1.5)
+    log.write(Chunk(2.0, "device", b"0RV100\r\n"))
+    log.close()
+    done = tshark(path, "-T", "fields", "-e", "frame.comment", plugin=False, decode_as=False)
+    assert done.returncode == 0, done.stderr
+    assert "replay: '0RS' CR LF is not in the rest of the capture" in done.stdout
+    with Capture([str(path)], "pcap") as capture:
+        assert [c.data for c in capture] == [b"0RV\r\n", b"0RV100\r\n"]
+        assert not capture.report.total_problems

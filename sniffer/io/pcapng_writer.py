@@ -170,6 +170,12 @@ class PcapngRecorder:
             self._packet(when, EVENT_STATUS, b"", notes)
             self._flush()
 
+    def note(self, text: str, t: float | None = None) -> None:
+        """A note of the shell's (``xac1 sim --replay``: a line not in the capture): an empty packet with
+        the text as its comment, as verdicts found with no new bytes are written."""
+        self._packet(t, EVENT_STATUS, b"", [text])
+        self._flush()
+
     def close(self) -> None:
         if not self._f.closed:
             try:
@@ -193,6 +199,8 @@ class Recorder(Protocol):
 
     def verdicts(self, records: Sequence[Record], t: float | None = None) -> None: ...
 
+    def note(self, text: str, t: float | None = None) -> None: ...
+
     def close(self) -> None: ...
 
 
@@ -215,6 +223,9 @@ class JsonlRecorder:
 
     def verdicts(self, records: Sequence[Record], t: float | None = None) -> None:
         pass
+
+    def note(self, text: str, t: float | None = None) -> None:
+        self._writer.note(text, t)
 
     def close(self) -> None:
         self._writer.close()
@@ -242,6 +253,9 @@ class AnalyzingRecorder:
 
     def verdicts(self, records: Sequence[Record], t: float | None = None) -> None:
         self.inner.verdicts(records, t)
+
+    def note(self, text: str, t: float | None = None) -> None:
+        self.inner.note(text, t)
 
     def close(self) -> None:
         try:

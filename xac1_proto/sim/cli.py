@@ -251,7 +251,7 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
 
 def _say_replay(note: str, log: ChunkWriter | None) -> None:
     """A line the capture does not hold next (from the simulator's loop): said on stderr at once, and in
-    the ``--log`` recording when it takes notes (our JSON lines recording does)."""
+    the ``--log`` recording (JSON lines: a note line; pcapng: a packet comment)."""
     print(f"xac1 sim: replay: {note}", file=sys.stderr, flush=True)
     take_note = getattr(log, "note", None)
     if take_note is not None:
