@@ -51,7 +51,8 @@ class Analyzer:
         self._device_since: float | None = None  # time of the oldest pending device byte
         self._device_last: float | None = None  # time of the latest device chunk
         self._closed = False
-        self._judged: list[tuple[Verdict, tuple[str, ...], str]] = []  # verdicts not yet counted
+        self._judged: list[Verdict] = []  # verdicts not yet counted
+        self._notes: dict[int, tuple[tuple[str, ...], str]] = {}  # index in _judged -> line errors, reason
 
     # ---- input ----
 
@@ -70,42 +71,62 @@ class Analyzer:
 
         Each chunk: time passes to its time (``_tick``), its bytes are framed by its line's framer (a
         device line's partial frame keeps the time it began: an answer that starts in time is in time),
-        and its events are judged (``_judge``)."""
+        and its events are judged (``_judge``). The usual chunk, one whole frame (``Framer.take_frame``),
+        goes to the engine at once: the frame's arrival passes time to it (the engine's events tick; a
+        device frame arriving in pieces meanwhile is passed to ``_tick`` first)."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        framers, errors_of, tick, judge = self._framers, self._errors, self._tick, self._judge
-        device = framers[DEVICE]
+        c = self.conversation
+        host_frame, device_frame, judged = c.host_frame, c.device_frame, self._judged
+        host, device = self._framers[HOST], self._framers[DEVICE]
         taken = 0
         size = 0
         try:
             for chunk in chunks:
-                t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
-                framer = framers.get(direction)
-                if framer is None:
+                t, direction, data = chunk.t, chunk.dir, chunk.data
+                if direction == HOST:
+                    framer = host
+                elif direction == DEVICE:
+                    framer = device
+                else:
                     raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
                 taken += 1
-                if t is not None:
-                    tick(t)
-                if error and data:
-                    errors_of[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
-                if framer is device and data:
-                    pending_before = framer.pending
-                    events = framer.feed(data, t)
-                    self._device_last = t
-                    if not framer.pending:
-                        self._device_since = None
-                    elif not pending_before:
-                        self._device_since = t  # else keep the older time: never expire too early
-                else:
-                    events = framer.feed(data, t)
-                if events:
-                    judge(direction, events)
                 size += len(data)
+                if chunk.error is None and framer.take_frame(data) is not None:
+                    if framer is host:
+                        if self._device_since is not None and t is not None:
+                            self._tick(t)  # an answer arriving in pieces: its start keeps its window open
+                        judged += host_frame(data, t, t)
+                    else:
+                        self._device_last = t
+                        judged += device_frame(data, t, t)
+                else:
+                    self._step(framer, direction, t, data, chunk.error)
                 if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                     break
         finally:
             self._emit(out)
         return taken
+
+    def _step(self, framer: Framer, direction: Direction, t: float | None, data: bytes,
+              error: str | None) -> None:
+        """One chunk, in general: time passes to ``t``, then the chunk's bytes are framed and judged."""
+        if t is not None:
+            self._tick(t)
+        if error and data:
+            self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
+        if framer is self._framers[DEVICE] and data:
+            pending_before = framer.pending
+            events = framer.feed(data, t)
+            self._device_last = t
+            if not framer.pending:
+                self._device_since = None
+            elif not pending_before:
+                self._device_since = t  # else keep the older time: never expire too early
+        else:
+            events = framer.feed(data, t)
+        if events:
+            self._judge(direction, events)
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
@@ -124,7 +145,7 @@ class Analyzer:
             self._judge(DEVICE, framer.flush())
         verdicts = self.conversation.tick(now, self._device_since)
         if verdicts:
-            self._judged += [(v, (), "") for v in verdicts]
+            self._judged += verdicts
 
     def close(self, now: float | None = None) -> list[Record]:
         """End of data: partial frames come out as junk; a command still waiting is ``no-answer`` when
@@ -143,7 +164,7 @@ class Analyzer:
                 else:
                     self._judge(direction, events)
             self._device_since = None
-            self._judged += [(v, (), "") for v in self.conversation.close(now)]
+            self._judged += self.conversation.close(now)
         finally:
             self._emit(out)
         self.tally.unanswered += self.conversation.cut_short()
@@ -174,7 +195,7 @@ class Analyzer:
         """The engine's verdicts on one line's events, each kept with the line errors of its bytes and the
         framer's reason (junk) until ``_emit``."""
         c = self.conversation
-        judged = self._judged
+        judged, notes = self._judged, self._notes
         flagged = self._errors[direction]
         host = direction == HOST
         for event in events:
@@ -188,33 +209,41 @@ class Analyzer:
                 else:  # a flushed partial line may be an answer
                     verdicts = c.device_junk(event.raw, event.t_first, event.t_last, reason == "flushed")
             errors = self._line_errors(direction, event.offset, len(event.raw)) if flagged else ()
-            for v in verdicts:
-                judged.append((v, errors, reason))
+            if errors or reason:
+                notes.update(dict.fromkeys(range(len(judged), len(judged) + len(verdicts)), (errors, reason)))
+            judged += verdicts
 
     def _emit(self, out: list[Record] | None) -> None:
         """The verdicts judged since the last call: counted, and made records into ``out`` (None: none)."""
-        judged = self._judged
+        judged, notes = self._judged, self._notes
         if not judged:
             return
-        self._judged = []
-        self.tally.count([  # the rows of ``Tally.count``
-            (v.kind, v.sender, len(v.raw), v.header, v.i, v.reply_to, v.latency_s,
-             v.codes if v.violations else (), v.sides if v.violations else (), bool(errors))
-            for v, errors, _ in judged])
-        if out is not None:
-            out += [to_record(v, errors, reason) for v, errors, reason in judged]
+        self._judged, self._notes = [], {}
+        self.tally.count(judged, sum(1 for errors, _ in notes.values() if errors))
+        if out is None:
+            return
+        if not notes:
+            out += map(to_record, judged)
+        else:
+            out += [to_record(v, *notes.get(k, _NO_NOTE)) for k, v in enumerate(judged)]
 
     def _judge_cut(self, direction: Direction, event: FrameBytes | Junk) -> None:
         """The data ended inside this frame: the engine's verdict that says so (no violation)."""
         verdicts = self.conversation.ended_inside_frame(direction, event.raw, event.t_first, event.t_last)
         errors = self._line_errors(direction, event.offset, len(event.raw)) if self._errors[direction] else ()
-        self._judged += [(v, errors, "") for v in verdicts]
+        if errors:
+            self._notes.update(dict.fromkeys(range(len(self._judged), len(self._judged) + len(verdicts)),
+                                             (errors, "")))
+        self._judged += verdicts
 
     def _line_errors(self, direction: str, offset: int, length: int) -> tuple[str, ...]:
         ranges = self._errors[direction]
         while ranges and ranges[0][1] <= offset:
             ranges.pop(0)
         return tuple(e for start, end, e in ranges if start < offset + length and end > offset)
+
+
+_NO_NOTE: Final[tuple[tuple[str, ...], str]] = ((), "")
 
 
 def _inside_frame(event: FrameBytes | Junk) -> bool:

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections import Counter
-from typing import Any, NamedTuple
+from collections import Counter, defaultdict
+from collections.abc import Iterable
+from typing import Any, NamedTuple, Protocol
 
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
@@ -200,11 +201,14 @@ class LatencyStats:
         self._waiting: list[float] = []
 
     def add(self, seconds: float) -> None:
-        if not -_MAX_LATENCY_S <= seconds <= _MAX_LATENCY_S:
-            return  # a damaged time (NaN, infinite, absurd), not a latency
-        self.n += 1
+        self.extend((seconds,))
+
+    def extend(self, seconds: Iterable[float]) -> None:
+        """Add latencies; a damaged time (NaN, infinite, absurd) is not one and is left out."""
         waiting = self._waiting
-        waiting.append(seconds)
+        before = len(waiting)
+        waiting += [s for s in seconds if -_MAX_LATENCY_S <= s <= _MAX_LATENCY_S]
+        self.n += len(waiting) - before
         if len(waiting) >= self.FOLD:
             self._fold()
 
@@ -229,14 +233,50 @@ class LatencyStats:
         return {"n": self.n, "min": keys[0] / 1000, "median": round(mid / 1000, 3), "max": keys[-1] / 1000}
 
 
-# what ``Tally.count`` counts of a frame, junk run or missed answer (see there)
-Row = tuple[str, str, int, "str | None", "int | None", "int | None", "float | None", tuple[str, ...],
-            tuple[str, ...], bool]
+class Counted(Protocol):
+    """What ``Tally.count`` reads of a frame, junk run, frame the data ended inside or missed answer: the
+    engine's ``Verdict`` has it all; ``Tally.add`` reads a record as one (``_RecordCounted``)."""
+
+    @property
+    def kind(self) -> str: ...  # a ``Verdict.kind``
+    @property
+    def sender(self) -> str: ...
+    @property
+    def raw(self) -> bytes: ...
+    @property
+    def header(self) -> str | None: ...
+    @property
+    def i(self) -> int | None: ...
+    @property
+    def reply_to(self) -> int | None: ...
+    @property
+    def latency_s(self) -> float | None: ...
+    @property
+    def violations(self) -> tuple[object, ...]: ...  # empty when clean (then codes and sides are not read)
+    @property
+    def codes(self) -> tuple[str, ...]: ...
+    @property
+    def sides(self) -> tuple[str, ...]: ...
+
+
+class _RecordCounted(NamedTuple):
+    """A record as ``Tally.count`` reads it."""
+
+    kind: str
+    sender: str
+    raw: bytes
+    header: str | None
+    i: int | None
+    reply_to: int | None
+    latency_s: float | None
+    violations: tuple[str, ...]
+    codes: tuple[str, ...]
+    sides: tuple[str, ...]
 
 
 class Tally:
-    """Counts what goes by (records through ``add``; the analyzer's verdicts as rows through ``count``,
-    without records); ``summary()`` is the schema's last line."""
+    """Counts what goes by (the analyzer's verdicts through ``count``, records through ``add``);
+    ``summary()`` is the schema's last line."""
 
     def __init__(self) -> None:
         self.junk_runs = 0
@@ -255,53 +295,64 @@ class Tally:
         codes = tuple(record.violations)
         sides = sides_of(record) if codes else ()
         if isinstance(record, TimeoutRecord):
-            self.count([("no-answer", record.dir, 0, record.header, None, record.command, None, codes, sides,
-                         False)])
+            self.count([_RecordCounted("no-answer", record.dir, b"", record.header, None, record.command, None,
+                                       codes, codes, sides)])
             return
         if isinstance(record, FrameRecord):
-            kind, header = "host-frame", record.header
+            kind, header = f"{record.dir}-frame", record.header
         else:
-            kind, header = ("cut" if record.reason == CAPTURE_ENDED else "host-junk"), None
-        self.count([(kind, record.dir, len(record.raw), header, record.i, record.reply_to,
-                     record.latency_s, codes, sides, bool(record.line_errors))])
+            kind, header = ("cut" if record.reason == CAPTURE_ENDED else f"{record.dir}-junk"), None
+        self.count([_RecordCounted(kind, record.dir, record.raw, header, record.i, record.reply_to,
+                                   record.latency_s, codes, codes, sides)], bool(record.line_errors))
 
-    def count(self, rows: list[Row]) -> None:
-        """Count frames, junk runs, frames the data ended inside and missed answers (``Row``: kind (a
-        ``Verdict.kind``), sender, bytes, header, number, the
-        line answered, latency, violation codes and their sides, a line error on its bytes): commands by
-        header, answers by header with their latency by the command's header, violations by side."""
-        commands, answers, sizes, headers = self.commands, self.answers, self.bytes, self._headers
-        latencies = self.latencies
-        for kind, sender, size, header, i, reply_to, latency_s, codes, sides, line_error in rows:
-            if codes:
-                self.codes.update(codes)
-                for code, side in zip(codes, sides, strict=True):
-                    self.by_side[side][code] += 1
-            if kind == "no-answer":
-                continue
-            sizes[sender] += size
-            self.line_errors += line_error
-            if kind == "host-junk" or kind == "device-junk":
-                self.junk_runs += 1
-                continue
-            if kind == "cut":  # the data ended inside this frame: its bytes, no junk run
-                continue
-            if not header:
-                header = "?"
-            if sender == "host":
+    def count(self, seen: Iterable[Counted], line_errors: int = 0) -> None:
+        """Count frames, junk runs, frames the data ended inside and missed answers (``Counted``), of which
+        ``line_errors`` carry a line error on their bytes: commands by header, answers by header with their
+        latency by the command's header, violations by side. (One pass with locals; the latencies go to
+        their ``LatencyStats`` a batch at a time.)"""
+        commands, answers, headers = self.commands, self.answers, self._headers
+        latencies: defaultdict[str, list[float]] = defaultdict(list)
+        host_bytes = device_bytes = junk = 0
+        for v in seen:
+            kind = v.kind
+            if v.violations:
+                self._count_violations(v.codes, v.sides)
+            if kind == "host-frame":
+                host_bytes += len(v.raw)
+                header = v.header or "?"
                 commands[header] += 1
-                headers[i] = header  # type: ignore[index]
+                headers[v.i] = header  # type: ignore[index]
                 if len(headers) > _MAX_WAITING:  # commands never answered: forget the oldest
                     del headers[next(iter(headers))]
-                continue
-            answers[header] += 1
-            if reply_to is not None:
-                command = headers.pop(reply_to, "?")
-                if latency_s is not None:
-                    stats = latencies.get(command)
-                    if stats is None:
-                        stats = latencies[command] = LatencyStats()
-                    stats.add(latency_s)
+            elif kind == "device-frame":
+                device_bytes += len(v.raw)
+                answers[v.header or "?"] += 1
+                reply_to = v.reply_to
+                if reply_to is not None:
+                    command = headers.pop(reply_to, "?")
+                    latency_s = v.latency_s
+                    if latency_s is not None:
+                        latencies[command].append(latency_s)
+            elif kind != "no-answer":  # a junk run, or a frame the data ended inside (its bytes, no junk run)
+                if v.sender == "host":
+                    host_bytes += len(v.raw)
+                else:
+                    device_bytes += len(v.raw)
+                junk += kind != "cut"
+        self.bytes["host"] += host_bytes
+        self.bytes["device"] += device_bytes
+        self.junk_runs += junk
+        self.line_errors += line_errors
+        for command, seconds in latencies.items():
+            stats = self.latencies.get(command)
+            if stats is None:
+                stats = self.latencies[command] = LatencyStats()
+            stats.extend(seconds)
+
+    def _count_violations(self, codes: tuple[str, ...], sides: tuple[str, ...]) -> None:
+        self.codes.update(codes)
+        for code, side in zip(codes, sides, strict=True):
+            self.by_side[side][code] += 1
 
     @property
     def frames(self) -> dict[str, int]:

@@ -277,10 +277,10 @@ def test_arbitrary_conversations_never_raise_and_chunking_never_changes_verdicts
 
 def test_every_command_that_changes_knowledge_has_its_handler():
     """What a clean exchange establishes is declared in one table, a handler a header (``_LEARNERS``):
-    every command header of the frame table has one, but 0CM and 0%C, which change only the mode and the
-    latch (docs/protocol.md "Behaviour the vendor text states"; silent item 11)."""
+    every command header of the frame table has one, but 0%C, which changes only the mode and the latch
+    (docs/protocol.md "Behaviour the vendor text states"; silent item 11)."""
     from xac1_proto import conversation as conv
 
     commands = {fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND}
-    assert set(conv._LEARNERS) == commands - {"0CM", spec.RESET_HEADER}
+    assert set(conv._LEARNERS) == commands - {spec.RESET_HEADER}
     assert all(callable(handler) for handler in conv._LEARNERS.values())

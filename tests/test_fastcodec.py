@@ -3,12 +3,14 @@
 
 from __future__ import annotations
 
+import re
+
 from hypothesis import given
 from hypothesis import strategies as st
 
 from xac1_proto import spec
 from xac1_proto.codec import diagnose
-from xac1_proto.fastcodec import decode_clean
+from xac1_proto.fastcodec import decode_clean, digits_in_range
 from xac1_proto.frames import FRAME_CLASSES, AlarmAnswer, ReadPointAnswer
 
 ROLES = st.sampled_from(spec.ROLES)
@@ -70,3 +72,20 @@ def test_vendor_examples_take_the_fast_path() -> None:
     assert decode_clean(b"0%%03\r\n", "answer") is None  # reserved alarm: the full path adds its notice
     assert decode_clean(b"0rp3\r\n", "command") is None
     assert len({cls for cls in FRAME_CLASSES.values()}) == len(spec.FRAME_SPECS)
+
+
+@given(st.sampled_from([10, 16]), st.integers(1, 4), st.data())
+def test_a_field_pattern_matches_exactly_the_values_in_its_range(radix: int, width: int,
+                                                                   data: st.DataObject) -> None:
+    """A field's digits match the frame's pattern exactly when their value is in the field's range (the
+    range is checked by the pattern alone: ``decode_clean`` checks nothing after a match)."""
+    top = radix ** width - 1
+    lo = data.draw(st.integers(0, top))
+    hi = data.draw(st.integers(lo, top))
+    pattern = re.compile(digits_in_range(lo, hi, width, radix))
+    for value in {0, lo, hi, top, max(lo - 1, 0), min(hi + 1, top), data.draw(st.integers(0, top))}:
+        digits = (f"{value:0{width}X}" if radix == 16 else f"{value:0{width}d}").encode("ascii")
+        assert (pattern.fullmatch(digits) is not None) == (lo <= value <= hi), (digits, lo, hi)
+        assert pattern.fullmatch(digits + b"0") is None and pattern.fullmatch(digits[1:]) is None
+        if digits.lower() != digits:  # lower-case hex is never clean
+            assert pattern.fullmatch(digits.lower()) is None

@@ -89,6 +89,7 @@ from .frames import (
     ReadVersion,
     StoreCurrent,
     StoreCurrentAnswer,
+    SwitchMode,
     WriteOutputs,
     WritePoint,
 )
@@ -158,6 +159,7 @@ class Knowledge:
 
 
 _NOTHING_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
+_NOTHING_SKIPPED: Final = ()  # ``_pair``: no line skipped (the usual answer)
 
 VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer", "cut"]
 
@@ -202,6 +204,11 @@ class Verdict(NamedTuple):
         return tuple(v for v in self.violations if v.code not in spec.NOTICES)
 
 
+# a verdict from its fields in order: ``_make`` skips the keyword handling of the generated ``__new__``
+# (two verdicts an exchange)
+_verdict: Final = Verdict._make
+
+
 _FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> field names in wire order
 
 
@@ -220,10 +227,10 @@ def _values_getter(names: tuple[str, ...]) -> Callable[[Frame], tuple[object, ..
     return (lambda frame: (get(frame),)) if len(names) == 1 else get
 
 
-# (header, role) -> the frame's field values in wire order, as a tuple (an echo is compared with them)
-_VALUES: Final[dict[tuple[str, str], Callable[[Frame], tuple[object, ...]]]] = {
-    (fs.header, fs.role): _values_getter(fs.field_names) for fs in spec.FRAME_SPECS}
-_ECHOES: Final = frozenset((fs.header, fs.role) for fs in spec.FRAME_SPECS if fs.echo)
+# answer header -> its field values in wire order, for the answers that echo their command (compared with
+# the command's values)
+_ECHOED: Final[dict[str, Callable[[Frame], tuple[object, ...]]]] = {
+    fs.header: _values_getter(fs.field_names) for fs in spec.FRAME_SPECS if fs.echo and fs.role == spec.ANSWER}
 # headers whose command and answer both carry N (an answer for another N is another command's)
 _BOTH_N: Final = frozenset(
     fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND and "n" in fs.field_names
@@ -254,8 +261,7 @@ class _Line:
     """A host line waiting for its answer. ``overlapped``: sent while another line waited (the host's
     fault, not owed an answer); ``deadline``: when its answer window closes (None without time)."""
 
-    __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
-                 "owed", "is_reset")
+    __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move")
 
     def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  deadline: float | None, waited_s: float, overlapped: bool = False,
@@ -269,8 +275,16 @@ class _Line:
         self.waited_s = waited_s
         self.overlapped = overlapped
         self.is_move = is_move
-        self.owed = kind != _DISCARD and not overlapped  # does silence to it break a rule (no-answer)?
-        self.is_reset = kind == _COMMAND and header == spec.RESET_HEADER
+
+    @property
+    def owed(self) -> bool:
+        """Does silence to it break a rule (no-answer)?"""
+        return self.kind != _DISCARD and not self.overlapped
+
+    @property
+    def is_reset(self) -> bool:
+        """Is it a well-formed alarm reset (0%C)?"""
+        return self.kind == _COMMAND and self.header == spec.RESET_HEADER
 
     def name(self) -> str:
         return f"{self.header or 'line'} #{self.i}"
@@ -394,8 +408,8 @@ class Conversation:
         if line.is_move and self.knowledge.latched.value is None and self._motion is None \
                 and line.kind == _COMMAND and not line.overlapped:
             self._motion = line
-        out.append(Verdict("host-frame", HOST, i, raw, header, frame, tuple(found), None, None, t_first,
-                           t_last, line.waited_s))
+        out.append(_verdict(("host-frame", HOST, i, raw, header, frame, tuple(found), None, None, t_first,
+                             t_last, line.waited_s)))
         return out
 
     def host_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -432,8 +446,8 @@ class Conversation:
         elif line.t_last is not None and t_first is not None:
             latency = t_first - line.t_last
         self._judge_answer(line, header, frame, found)
-        out.append(Verdict("device-frame", DEVICE, i, raw, header, frame, tuple(found),
-                           None if line is None else line.i, latency, t_first, t_last))
+        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found),
+                             None if line is None else line.i, latency, t_first, t_last, None)))
         return out
 
     def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -470,7 +484,13 @@ class Conversation:
         if last is None or now > last:
             self._last_t = now
         self._answer_since = answer_since
-        return self._expire(now) if self._queue else []
+        queue = self._queue
+        if not queue:
+            return []
+        deadline = queue[0].deadline
+        if len(queue) == 1 and (deadline is None or not deadline < now):
+            return []  # the usual tick: the one line waiting is still in its window
+        return self._expire(now)
 
     def ended_inside_frame(self, sender: spec.Side, raw: bytes, t_first: float | None = None,
                            t_last: float | None = None) -> list[Verdict]:
@@ -539,8 +559,8 @@ class Conversation:
     def _enqueue(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  found: list[Violation], window: float | None = None) -> _Line:
         """Queue a host line, judging when it was sent (docs/protocol.md "Framing": strict request/answer)."""
-        what = header or "this line"
         overlapped = False
+        what = header or "this line"
         if self._motion is not None:
             kind = _DISCARD
             found.append(_v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
@@ -555,15 +575,18 @@ class Conversation:
                                f"unanswered and the host going on after waiting (no-answer)")
                 found.append(_v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
         is_move = kind == _COMMAND and header in spec.MOVE_HEADERS and frame is not None
-        waited = self.answer_window(frame) if is_move and frame is not None else self.no_answer_timeout
         if window is not None:
             waited = window
+        elif is_move and frame is not None:
+            waited = self.answer_window(frame)
+        else:
+            waited = self.no_answer_timeout
         line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + waited, waited,
                      overlapped, is_move)
         self._queue.append(line)
         return line
 
-    def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line]]:
+    def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line] | tuple[()]]:
         """The line an answer belongs to, and the lines it shows were skipped (module docstring)."""
         queue = self._queue
         if not queue:
@@ -578,8 +601,9 @@ class Conversation:
                     break
         if chosen is not None and chosen is queue[0]:  # the usual answer: to the head, nothing skipped
             queue.popleft()
-            self._end_motion(chosen)
-            return chosen, []
+            if self._motion is chosen:
+                self._motion = None
+            return chosen, _NOTHING_SKIPPED
         if chosen is None:
             for w in self._queue:
                 fits = header == spec.ALARM_HEADER or (w.header is not None and w.header == header)
@@ -685,8 +709,12 @@ class Conversation:
         if self.knowledge.latched.value is not None:
             self._latch_on_normal_answer(line, found)
         clean = self._pairing(line, header, frame, found) and not (found and _is_error(found))
-        if clean and line.frame is not None:
-            self._learn(line.frame, frame, found)
+        command = line.frame
+        if clean and command is not None:  # what the exchange establishes (one handler a header)
+            self.knowledge.mode = _MODE_1  # silent item 11: communicating gives mode 1 (0CM says otherwise)
+            learn = _LEARNERS.get(command.HEADER)
+            if learn is not None:
+                learn(self, command, frame, found)
         else:
             self._outcome_unknown(line)
 
@@ -792,9 +820,8 @@ class Conversation:
         if header != line.header:
             found.append(_v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
             return False
-        key = (header, spec.ANSWER)
-        if key in _ECHOES:
-            values = _VALUES[key]
+        values = _ECHOED.get(header)
+        if values is not None:
             if values(frame) != values(cmd):
                 mine, theirs = _fields(frame), _fields(cmd)
                 diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
@@ -814,19 +841,15 @@ class Conversation:
         found.append(_v("readback-mismatch", f"{what} reads back {seen}, but the conversation "
                         f"{'established' if fact.status == KNOWN else 'read earlier'} {how}"))
 
-    def _learn(self, c: Frame, a: Frame, found: list[Violation]) -> None:
-        """What a clean exchange establishes, and the read-backs it is judged against: the mode, then the
-        command's own reads and writes of the knowledge (``_LEARNERS``, one handler a header)."""
+    def _on_switch_mode(self, c: Frame, a: Frame, found: list[Violation]) -> None:
+        """0CM: the mode sent; after 0CM0 the external I/O owns the controller until the next line."""
         k = self.knowledge
-        mode = getattr(c, "mode", 1)  # silent item 11: communicating gives mode 1
-        k.mode = _MODE_1 if mode == 1 and type(mode) is int else Fact(mode, KNOWN)
-        if mode == 0:  # silent item 11: the external I/O owns the controller until the next line
-            k.outputs, k.position = Fact(), Fact()
+        mode = c.mode  # type: ignore[attr-defined]
+        k.mode = Fact(mode, KNOWN)
+        if mode == 0:  # silent item 11
+            k.outputs, k.position = _NOTHING_KNOWN, _NOTHING_KNOWN
             if k.homed.value is not True:
-                k.homed = Fact()
-        learn = _LEARNERS.get(c.HEADER)
-        if learn is not None:
-            learn(self, c, a, found)
+                k.homed = _NOTHING_KNOWN
 
 
     def _on_write_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
@@ -908,8 +931,10 @@ class Conversation:
             self._readback(found, "0RC's Pos", f"{a.pos:06X}", k.position,
                            f"the axis at {k.position.value:06X}")
             return
-        k.homed = Fact(True, k.homed.status if k.homed.value else LEARNT)
-        k.position = Fact(a.pos, k.position.status if k.position.judged else LEARNT)
+        if k.homed.value is not True:
+            k.homed = Fact(True, LEARNT)
+        if not k.position.judged:  # else it is what was read (a mismatch returned above)
+            k.position = Fact(a.pos, LEARNT)
 
     def _outcome_unknown(self, line: _Line) -> None:
         """A line whose answer is missing, garbled or faulty: what it would change is unknown now."""
@@ -958,8 +983,9 @@ class Conversation:
 _MODE_1: Final = Fact(1, KNOWN)
 _HOMED: Final = Fact(True, KNOWN)
 
-# The knowledge each command reads and writes on a clean exchange, one handler a header (``_learn``);
-# 0CM and 0%C change only the mode (and the latch, in ``_reset_done``).
+# The knowledge each command reads and writes on a clean exchange, one handler a header (``_judge_answer``),
+# and the read-backs it is judged against;
+# 0%C changes only the mode (and the latch, in ``_reset_done``).
 _LEARNERS: Final[dict[str, Callable[..., None]]] = {
     ReadPoint.HEADER: Conversation._on_read_point,
     WritePoint.HEADER: Conversation._on_write_point,
@@ -970,6 +996,7 @@ _LEARNERS: Final[dict[str, Callable[..., None]]] = {
     ReadOutputs.HEADER: Conversation._on_read_outputs,
     WriteOutputs.HEADER: Conversation._on_write_outputs,
     ReadVersion.HEADER: Conversation._on_read_version,
+    SwitchMode.HEADER: Conversation._on_switch_mode,
 }
 
 

@@ -1,12 +1,13 @@
 """The fast path of ``codec.diagnose`` for well-formed frames, derived from the spec tables at import.
 
 How this works: most traffic is clean, and a clean frame needs none of the lenient walk's bookkeeping.
-For each frame kind of ``spec.FRAME_SPECS`` one regular expression is compiled from its layout (the
-header, each field as exactly its width of upper-case hex or decimal digits, each literal verbatim, then
-CR LF, nothing after). ``decode_clean(data, role)`` returns the frame when the bytes match and every
-field is inside its range (an alarm code the vendor lists with a meaning, too), and None otherwise:
-then the caller takes the full path, which lists every violation. A frame it returns is exactly what
-``diagnose`` returns with no violation (tests/test_fastcodec.py proves it with hypothesis); the
+For each frame kind of ``spec.FRAME_SPECS`` one regular expression is compiled from its layout: the
+header, each field as exactly its width of upper-case hex or decimal digits whose value is inside the
+field's range (``digits_in_range``; an alarm code only as one the vendor lists with a meaning), each
+literal verbatim, then CR LF, nothing after. ``decode_clean(data, role)`` returns the frame when the bytes
+match, and None otherwise: then the caller takes the full path, which lists every violation. A match
+needs no further check, so a field's value is one ``int`` of its digits. A frame it returns is exactly
+what ``diagnose`` returns with no violation (tests/test_fastcodec.py proves it with hypothesis); the
 grammar itself stays defined once, in ``spec.py`` and ``grammar.py``.
 """
 
@@ -18,62 +19,76 @@ from typing import Final
 from . import spec
 from .frames import FRAME_CLASSES, Frame
 
-_DIGITS: Final = {16: b"[0-9A-F]", 10: b"[0-9]"}
-
-# a field's check: radix (0 for a text field, kept as its digits), lowest and highest value, and the
-# values allowed (the alarm codes the vendor lists with a meaning; None: any in range)
-Check = tuple[int, int, int, "frozenset[int] | None"]
+_DIGITS: Final = {16: "0123456789ABCDEF", 10: "0123456789"}
 _LISTED_ALARMS: Final = frozenset(c for c, meaning in spec.ALARMS.items() if meaning is not None)
 
 
-def _check(fs: spec.FrameSpec, name: str) -> Check:
+def _one_of(digits: str) -> bytes:
+    return re.escape(digits).encode("ascii") if len(digits) == 1 else b"[" + digits.encode("ascii") + b"]"
+
+
+def digits_in_range(lo: int, hi: int, width: int, radix: int) -> bytes:
+    """A pattern for exactly ``width`` upper-case digits of ``radix`` whose value is in ``[lo, hi]``."""
+    if width == 0:
+        return b""
+    digits = _DIGITS[radix]
+    if lo == 0 and hi == radix ** width - 1:  # any digits
+        return _one_of(digits) + (b"{%d}" % width if width > 1 else b"")
+    unit = radix ** (width - 1)
+    (lo_d, lo_rest), (hi_d, hi_rest) = divmod(lo, unit), divmod(hi, unit)
+    rest = width - 1
+    any_rest = b"" if not rest else _one_of(digits) + (b"{%d}" % rest if rest > 1 else b"")
+    if lo_d == hi_d:
+        return _one_of(digits[lo_d]) + digits_in_range(lo_rest, hi_rest, width - 1, radix)
+    if lo_rest == 0 and hi_rest == unit - 1:  # whole leading digits
+        return _one_of(digits[lo_d:hi_d + 1]) + any_rest
+    parts = [_one_of(digits[lo_d]) + digits_in_range(lo_rest, unit - 1, width - 1, radix)]
+    if hi_d - lo_d > 1:
+        parts.append(_one_of(digits[lo_d + 1:hi_d]) + any_rest)
+    parts.append(_one_of(digits[hi_d]) + digits_in_range(0, hi_rest, width - 1, radix))
+    return b"(?:" + b"|".join(parts) + b")"
+
+
+def _field_pattern(fs: spec.FrameSpec, name: str) -> bytes:
     field = spec.FIELDS[name]
     if field.text:
-        return 0, 0, 0, None
+        return b"([0-9]{%d})" % field.width
+    if name == "code" and fs.header == spec.ALARM_HEADER:  # only a code the vendor lists with a meaning
+        codes = sorted(c for c in _LISTED_ALARMS if fs.field_range(name)[0] <= c <= fs.field_range(name)[1])
+        return b"(" + b"|".join(f"{c:0{field.width}X}".encode("ascii") for c in codes) + b")"
     lo, hi = fs.field_range(name)
-    listed = _LISTED_ALARMS if name == "code" and fs.header == spec.ALARM_HEADER else None
-    return field.radix, lo, hi, listed
+    return b"(" + digits_in_range(lo, hi, field.width, field.radix) + b")"
 
 
 def _pattern(fs: spec.FrameSpec) -> re.Pattern[bytes]:
     parts = [re.escape(fs.header.encode("ascii"))]
     for item in fs.layout:
-        if isinstance(item, str):
-            field = spec.FIELDS[item]
-            parts.append(b"(" + _DIGITS[field.radix] + b"{%d})" % field.width)
-        else:
-            parts.append(re.escape(item.text.encode("ascii")))
+        parts.append(_field_pattern(fs, item) if isinstance(item, str) else re.escape(item.text.encode("ascii")))
     parts.append(re.escape(spec.TERMINATOR))
     return re.compile(b"".join(parts))
 
 
-_Entry = tuple[re.Pattern[bytes], type[Frame], tuple[str, ...], tuple[Check, ...]]
-_TABLE: Final[dict[tuple[bytes, str], _Entry]] = {
-    (fs.header.encode("ascii"), fs.role): (
-        _pattern(fs), FRAME_CLASSES[fs.key], fs.field_names,
-        tuple(_check(fs, name) for name in fs.field_names),
-    )
-    for fs in spec.FRAME_SPECS
-}
+# role -> header bytes -> (the pattern, the frame class, its field names, each field's radix: 0 for text)
+_Entry = tuple[re.Pattern[bytes], type[Frame], tuple[str, ...], tuple[int, ...]]
+_TABLE: Final[dict[str, dict[bytes, _Entry]]] = {role: {} for role in spec.ROLES}
+for _fs in spec.FRAME_SPECS:
+    _TABLE[_fs.role][_fs.header.encode("ascii")] = (
+        _pattern(_fs), FRAME_CLASSES[_fs.key], _fs.field_names,
+        tuple(0 if spec.FIELDS[name].text else spec.FIELDS[name].radix for name in _fs.field_names))
 
 
 def decode_clean(data: bytes, role: str) -> Frame | None:
     """The frame ``data`` holds if it is well formed and every field in range, else None (the caller,
     ``codec.read_frame``, remembers the last distinct lines)."""
-    entry = _TABLE.get((data[: spec.HEADER_WIDTH], role))
+    entry = _TABLE[role].get(data[: spec.HEADER_WIDTH])
     if entry is None:
         return None
-    pattern, cls, names, checks = entry
+    pattern, cls, names, radixes = entry
     match = pattern.fullmatch(data)
     if match is None:
         return None
-    values: dict[str, int | str] = {}
-    for name, (radix, lo, hi, listed), text in zip(names, checks, match.groups(), strict=True):
-        if not radix:
-            values[name] = text.decode("ascii")
-            continue
-        value = int(text, radix)
-        if value < lo or value > hi or (listed is not None and value not in listed):
-            return None  # out of range: the full path says why
-        values[name] = value
-    return cls.unchecked(**values)
+    if 0 in radixes:  # a text field (the version) is kept as its digits
+        values = (text.decode("ascii") if not radix else int(text, radix)
+                  for text, radix in zip(match.groups(), radixes, strict=True))
+        return cls(**dict(zip(names, values, strict=True)), check=False)
+    return cls(**dict(zip(names, map(int, match.groups(), radixes), strict=True)), check=False)

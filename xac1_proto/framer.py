@@ -122,11 +122,19 @@ class Framer:
         """Bytes fed but not yet in an event."""
         return len(self._buf)
 
+    def take_frame(self, data: bytes) -> int | None:
+        """The common chunk: when nothing is pending and ``data`` is exactly one frame (the event ``feed``
+        would give), take it and return its stream offset; else None, taking nothing (``feed`` it)."""
+        if self._buf or self._whole(data) is None:
+            return None
+        offset = self._base
+        self._base = offset + len(data)
+        return offset
+
     def feed(self, data: bytes, t: float | None = None) -> list[Event]:
         """Take the next bytes of the stream (all received at time ``t``); the events they complete."""
-        if not self._buf and self._whole(data) is not None:  # the common chunk: one frame, nothing held
-            offset = self._base
-            self._base = offset + len(data)
+        offset = self.take_frame(data)
+        if offset is not None:
             return [FrameBytes(data if type(data) is bytes else bytes(data), offset, t, t)]
         if data:
             self._buf += data
