@@ -295,8 +295,8 @@ class Tally:
         codes = tuple(record.violations)
         sides = sides_of(record) if codes else ()
         if isinstance(record, TimeoutRecord):
-            self.count([_RecordCounted("no-answer", record.dir, b"", record.header, None, record.command, None,
-                                       codes, codes, sides)])
+            self.count([_RecordCounted("no-answer", record.dir, b"", record.header, None, record.command,
+                                       None, codes, codes, sides)])
             return
         if isinstance(record, FrameRecord):
             kind, header = f"{record.dir}-frame", record.header

@@ -230,7 +230,8 @@ def _values_getter(names: tuple[str, ...]) -> Callable[[Frame], tuple[object, ..
 # answer header -> its field values in wire order, for the answers that echo their command (compared with
 # the command's values)
 _ECHOED: Final[dict[str, Callable[[Frame], tuple[object, ...]]]] = {
-    fs.header: _values_getter(fs.field_names) for fs in spec.FRAME_SPECS if fs.echo and fs.role == spec.ANSWER}
+    fs.header: _values_getter(fs.field_names)
+    for fs in spec.FRAME_SPECS if fs.echo and fs.role == spec.ANSWER}
 # headers whose command and answer both carry N (an answer for another N is another command's)
 _BOTH_N: Final = frozenset(
     fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND and "n" in fs.field_names

@@ -63,7 +63,10 @@ def _field_pattern(fs: spec.FrameSpec, name: str) -> bytes:
 def _pattern(fs: spec.FrameSpec) -> re.Pattern[bytes]:
     parts = [re.escape(fs.header.encode("ascii"))]
     for item in fs.layout:
-        parts.append(_field_pattern(fs, item) if isinstance(item, str) else re.escape(item.text.encode("ascii")))
+        if isinstance(item, str):
+            parts.append(_field_pattern(fs, item))
+        else:
+            parts.append(re.escape(item.text.encode("ascii")))
     parts.append(re.escape(spec.TERMINATOR))
     return re.compile(b"".join(parts))
 
