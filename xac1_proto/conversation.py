@@ -155,10 +155,10 @@ class Knowledge:
     stop_cleared: Fact[int] = field(default_factory=Fact)
 
     def point(self, n: int) -> Fact[PointData]:
-        return self.points.get(n, _NOTHING_KNOWN)
+        return self.points.get(n, _NOT_KNOWN)
 
 
-_NOTHING_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
+_NOT_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
 _NOTHING_SKIPPED: Final = ()  # ``_pair``: no line skipped (the usual answer)
 
 VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer", "cut"]
@@ -362,7 +362,7 @@ class Conversation:
         """The device was just powered on: not homed, mode 0, nothing latched (docs/protocol.md
         "Behaviour the vendor text states": 0RC before homing, power-on mode)."""
         k = self.knowledge
-        k.homed, k.position = Fact(False, KNOWN), Fact()
+        k.homed, k.position = Fact(False, KNOWN), _NOT_KNOWN
         k.mode, k.latched = Fact(0, KNOWN), Fact(None, KNOWN)
         k.storm_run = 0
         self._unreset_alarm = False
@@ -377,13 +377,13 @@ class Conversation:
         if pressed:
             self._stop_over(k.latched)
             k.latched = Fact(spec.ALARM_ESTOP, KNOWN)
-            k.position = Fact()
+            k.position = _NOT_KNOWN
             return
         if k.latched.value == spec.ALARM_ESTOP:  # an alarm held under the stop is latched again
             k.latched = k.under_stop if k.under_stop.value is not None else Fact(None, KNOWN)
-            k.under_stop = Fact()
+            k.under_stop = _NOT_KNOWN
         if unhomes and was_on:  # a release of a stop that was not on changes nothing
-            k.homed, k.position = Fact(False, KNOWN), Fact()
+            k.homed, k.position = Fact(False, KNOWN), _NOT_KNOWN
 
     def move_finished(self, now: float) -> None:
         """A caller knows the move under way has ended: its answer is due within the plain timeout."""
@@ -751,24 +751,24 @@ class Conversation:
         if line is not None and line.is_reset and code == spec.ALARM_ESTOP:
             k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
         elif code != spec.ALARM_ESTOP and released:  # the stop was released unseen: held or new alarm
-            k.under_stop, k.stop_cleared = Fact(), Fact()
+            k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
         elif code not in (spec.ALARM_ESTOP, spec.ALARM_NONE):  # a new alarm latched after the stop: what
-            k.stop_cleared = Fact()  # the reset cleared during it is history, this one is the latched one
+            k.stop_cleared = _NOT_KNOWN  # the reset cleared during it is history, this one is the latched one
         if code != spec.ALARM_NONE:
             k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
             if line is None or not line.is_reset:
                 self._unreset_alarm = True
         if code == spec.ALARM_ESTOP:
-            k.position = Fact()
+            k.position = _NOT_KNOWN
         elif code == spec.ALARM_HOMING:  # homing failed: homed or not is learnt from 0RC ("Alarms")
-            k.homed, k.position = Fact(), Fact()
+            k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN
         if line is not None:
             k.mode = Fact(1, KNOWN)  # silent item 11: a refused line is communication too
             self._end_motion(line)
             if line.is_move:
-                k.position = Fact()  # it may have stopped anywhere (item 19)
+                k.position = _NOT_KNOWN  # it may have stopped anywhere (item 19)
                 if k.homed.value is not True:
-                    k.homed = Fact()  # it may have homed first ("Alarms": homing after each alarm)
+                    k.homed = _NOT_KNOWN  # it may have homed first ("Alarms": homing after each alarm)
 
     def _reset_done(self, found: list[Violation]) -> None:
         """0%C answered 0%C00: every alarm but 0E clears. Whether 0E was still on is known only where the
@@ -781,9 +781,9 @@ class Conversation:
                             "is pressed: emergency stop (0E) stays latched until the input is released"))
             return  # the device is wrong; the stop is still on
         if k.latched.value == spec.ALARM_ESTOP:
-            k.homed, k.position = Fact(), Fact()  # released unseen: what the axis does is item 3
+            k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN  # released unseen: what the axis does is item 3
         k.latched = Fact(None, KNOWN)
-        k.under_stop, k.stop_cleared = Fact(), Fact()
+        k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
 
     def _latch_on_normal_answer(self, line: _Line, found: list[Violation]) -> None:
         k = self.knowledge
@@ -796,8 +796,8 @@ class Conversation:
                 found.append(_v("latch-broken", f"{line.header} got a normal answer after the emergency "
                                 f"stop, but alarm {under:02X} was latched before it and no reset cleared it"))
             k.latched = Fact(None, KNOWN)  # the stop input was released (silent item 3)
-            k.homed, k.position = Fact(), Fact()
-            k.under_stop, k.stop_cleared = Fact(), Fact()
+            k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN
+            k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
             return
         found.append(_v("latch-broken", f"{line.header} got a normal answer while alarm {latched:02X} "
                         f"({spec.alarm_meaning(latched)}) should still be latched"))
@@ -848,9 +848,9 @@ class Conversation:
         mode = c.mode  # type: ignore[attr-defined]
         k.mode = Fact(mode, KNOWN)
         if mode == 0:  # silent item 11
-            k.outputs, k.position = _NOTHING_KNOWN, _NOTHING_KNOWN
+            k.outputs, k.position = _NOT_KNOWN, _NOT_KNOWN
             if k.homed.value is not True:
-                k.homed = _NOTHING_KNOWN
+                k.homed = _NOT_KNOWN
 
 
     def _on_write_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
@@ -875,9 +875,9 @@ class Conversation:
         assert isinstance(c, MovePoint)
         k.homed = _HOMED
         point = k.point(c.n)
-        k.position = Fact(point.value.pos, point.status) if c.n and point.value is not None else Fact()
+        k.position = Fact(point.value.pos, point.status) if c.n and point.value is not None else _NOT_KNOWN
         if c.n:
-            k.outputs = Fact()  # silent item 8
+            k.outputs = _NOT_KNOWN  # silent item 8
 
     def _on_move_direct(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0MV: homed, at the position sent."""
@@ -890,12 +890,14 @@ class Conversation:
         o = a.o  # type: ignore[attr-defined]
         if k.outputs.judged and o != k.outputs.value:
             self._readback(found, "0RS's O", o, k.outputs, f"O={k.outputs.value}")
-        else:
+        elif k.outputs != (o, LEARNT):
             k.outputs = Fact(o, LEARNT)
 
     def _on_write_outputs(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WS: the OUT ports are what was written."""
-        self.knowledge.outputs = Fact(c.o, KNOWN)  # type: ignore[attr-defined]
+        k = self.knowledge
+        if k.outputs != (c.o, KNOWN):  # type: ignore[attr-defined]
+            k.outputs = Fact(c.o, KNOWN)  # type: ignore[attr-defined]
 
     def _on_read_version(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0RV: the version read back."""
@@ -926,7 +928,7 @@ class Conversation:
                                "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)")
             return
         if unknown:  # the device states it is not homed: learnt, never judged (an unseen power cycle...)
-            k.homed, k.position = Fact(False, LEARNT), Fact()
+            k.homed, k.position = Fact(False, LEARNT), _NOT_KNOWN
             return
         if k.position.judged and a.pos != k.position.value:
             self._readback(found, "0RC's Pos", f"{a.pos:06X}", k.position,
@@ -942,19 +944,19 @@ class Conversation:
         k = self.knowledge
         c = line.frame
         if line.is_move or isinstance(c, (MovePoint, MoveDirect)):
-            k.position = Fact()
+            k.position = _NOT_KNOWN
             if k.homed.value is not True:
-                k.homed = Fact()
+                k.homed = _NOT_KNOWN
         if c is None:
             return
         if c.header in ("0WP", "0WC") and hasattr(c, "n"):
             k.points.pop(c.n, None)
         elif c.header == "0WS" or (isinstance(c, MovePoint) and c.n):
-            k.outputs = Fact()
+            k.outputs = _NOT_KNOWN
         elif c.header == "0CM":
-            k.mode = Fact()
+            k.mode = _NOT_KNOWN
         elif line.is_reset:
-            k.latched = Fact()
+            k.latched = _NOT_KNOWN
 
     # ---- move time (silent items 15, 17) ----
 

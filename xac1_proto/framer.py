@@ -63,15 +63,14 @@ Event = FrameBytes | Junk
 
 
 @functools.cache
-def _whole_line_pattern(max_frame: int) -> re.Pattern[bytes]:
-    """A chunk the general path would emit whole, as one pattern (``Framer.feed``'s common case): a frame
-    start (``0`` + a letter or ``%``, or ``O`` + a known tail), then bytes other than LF none of which
-    starts a full header, then the LF, ``max_frame`` bytes at most. (With the LF last, no start byte is
-    left undecided.)"""
+def _line_pattern(max_frame: int) -> re.Pattern[bytes]:
+    """A frame start (``0`` + a letter or ``%``, or ``O`` + a known tail), then bytes other than LF, then
+    the LF, ``max_frame`` bytes at most: a whole line that starts like a frame (``Framer.take_frame``; it
+    is one frame when no full header starts after its first byte, ``_STRONG``)."""
     tails = b"(?:" + b"|".join(re.escape(t) for t in sorted(_TAILS)) + b")"
     lead, letter_o = re.escape(spec.LEAD), re.escape(spec.LETTER_O)
     start = b"(?:" + lead + b"(?=[A-Za-z%])|" + letter_o + b"(?=" + tails + b"))"
-    return re.compile(start + b"(?:(?!" + _START_BYTE.pattern + tails + b")[^\n]){0,%d}\n" % (max_frame - 2))
+    return re.compile(start + b"[^\n]{0,%d}\n" % (max_frame - 2))
 
 
 def _strong_start(buf: bytes | bytearray, p: int) -> int:
@@ -110,7 +109,7 @@ class Framer:
         self._base = 0  # stream offset of _buf[0]
         self._ends: list[int] = []  # stream offset just past each fed chunk still in _buf
         self._times: list[float | None] = []
-        self._whole = _whole_line_pattern(max_frame).fullmatch  # one frame, exactly
+        self._line = _line_pattern(max_frame).fullmatch  # a whole line starting like a frame
 
     @property
     def bytes_in(self) -> int:
@@ -125,8 +124,8 @@ class Framer:
     def take_frame(self, data: bytes) -> int | None:
         """The common chunk: when nothing is pending and ``data`` is exactly one frame (the event ``feed``
         would give), take it and return its stream offset; else None, taking nothing (``feed`` it)."""
-        if self._buf or self._whole(data) is None:
-            return None
+        if self._buf or self._line(data) is None or _STRONG.search(data, 1) is not None:
+            return None  # (with the LF last, no start byte is left undecided)
         offset = self._base
         self._base = offset + len(data)
         return offset
