@@ -22,6 +22,7 @@ there is; the engine's docstring says what it then concludes.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from itertools import islice
 from typing import Final
 
 from xac1_proto import FrameBytes, Framer, Junk, motion, spec
@@ -78,21 +79,14 @@ class Analyzer:
             raise RuntimeError("the analyzer is closed")
         c = self.conversation
         host_frame, device_frame, judged = c.host_frame, c.device_frame, self._judged
-        host, device = self._framers[HOST], self._framers[DEVICE]
-        taken = 0
-        size = 0
+        framers = self._framers
+        host = framers[HOST]
+        taken = size = 0
         try:
-            for chunk in chunks:
+            for taken, chunk in enumerate(islice(chunks, limit), 1):
                 t, direction, data = chunk.t, chunk.dir, chunk.data
-                if direction == HOST:
-                    framer = host
-                elif direction == DEVICE:
-                    framer = device
-                else:
-                    raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
-                taken += 1
-                size += len(data)
-                if chunk.error is None and framer.take_frame(data) is not None:
+                framer = framers.get(direction)
+                if chunk.error is None and framer is not None and framer.take_frame(data) is not None:
                     if framer is host:
                         if self._device_since is not None and t is not None:
                             self._tick(t)  # an answer arriving in pieces: its start keeps its window open
@@ -100,9 +94,12 @@ class Analyzer:
                     else:
                         self._device_last = t
                         judged += device_frame(data, t, t)
-                else:
-                    self._step(framer, direction, t, data, chunk.error)
-                if taken >= limit or size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
+                    continue  # (a whole frame is at most MAX_FRAME bytes: a batch of them stays small)
+                if framer is None:
+                    raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
+                self._step(framer, direction, t, data, chunk.error)
+                size += len(data)
+                if size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                     break
         finally:
             self._emit(out)

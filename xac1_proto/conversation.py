@@ -101,6 +101,8 @@ KNOWN: Final = "known"
 LEARNT: Final = "learnt"
 HOST: Final = spec.HOST_SIDE
 DEVICE: Final = spec.DEVICE_SIDE
+_ALARM: Final = spec.ALARM_HEADER  # the alarm answer's header (0%%)
+_RESET: Final = spec.RESET_HEADER  # the alarm reset's (0%C)
 STROKE_END: Final = spec.UNKNOWN_POSITION - 1  # the farthest position a move can reach (silent item 5)
 
 _BEHAVIOUR: Final = 'docs/protocol.md "Behaviour the vendor text states"'
@@ -691,29 +693,32 @@ class Conversation:
             self._storm(header, frame)
             self._alarm(line, frame.code, found)
             return
-        if header is not None and header != spec.ALARM_HEADER and header != spec.RESET_HEADER:
-            self.knowledge.storm_run = 0  # any other answer ends the storm run (``_storm``)
-        if header is None or frame is None or header == spec.ALARM_HEADER:
+        if header is None:  # unreadable: it neither counts nor ends the storm run
             if line is not None:
                 self._outcome_unknown(line)
             return
-        if line is None:
-            return  # unsolicited: nothing it says is trusted
+        k = self.knowledge
+        if header != _RESET and header != _ALARM:
+            k.storm_run = 0  # any other answer ends the storm run (``_storm``), a faulty one too
+        if frame is None or header == _ALARM or line is None:  # (unsolicited: nothing it says is trusted)
+            if line is not None:
+                self._outcome_unknown(line)
+            return
         if line.kind == _ERROR:
             found.append(_v("error-accepted", f"{header} answer to {line.name()}, which breaks the frame "
                             f"table: an error is answered with an alarm answer (0%%Ec)"))
             self._outcome_unknown(line)
             return
-        if header == spec.RESET_HEADER and line.is_reset:
+        if header == _RESET and line.is_reset:
             self._reset_done(found)
             return
-        if self.knowledge.latched.value is not None:
+        if k.latched.value is not None:
             self._latch_on_normal_answer(line, found)
-        clean = self._pairing(line, header, frame, found) and not (found and _is_error(found))
         command = line.frame
-        if clean and command is not None:  # what the exchange establishes (one handler a header)
-            self.knowledge.mode = _MODE_1  # silent item 11: communicating gives mode 1 (0CM says otherwise)
-            learn = _LEARNERS.get(command.HEADER)
+        if command is not None and self._pairing(line, command, header, frame, found) \
+                and not (found and _is_error(found)):  # a clean exchange: what it establishes
+            k.mode = _MODE_1  # silent item 11: communicating gives mode 1 (0CM says otherwise)
+            learn = _LEARNERS.get(header)
             if learn is not None:
                 learn(self, command, frame, found)
         else:
@@ -812,12 +817,9 @@ class Conversation:
         if latched.value != spec.ALARM_ESTOP:
             k.under_stop, k.stop_cleared = latched, Fact(None, KNOWN)
 
-    def _pairing(self, line: _Line, header: str, frame: Frame, found: list[Violation]) -> bool:
+    def _pairing(self, line: _Line, cmd: Frame, header: str, frame: Frame, found: list[Violation]) -> bool:
         """Answer-mismatch and echo-mismatch (docs/protocol.md "Frames"; echoes judged by fields, never
-        bytes). True when the answer fits its command."""
-        cmd = line.frame
-        if line.header is None or cmd is None:
-            return True
+        bytes) of the answer ``frame`` to ``line``'s command ``cmd``. True when the answer fits it."""
         if header != line.header:
             found.append(_v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
             return False
