@@ -83,7 +83,8 @@ class Analyzer:
         host = framers[HOST]
         taken = size = 0
         try:
-            for taken, chunk in enumerate(islice(chunks, limit), 1):
+            for chunk in islice(chunks, limit):
+                taken += 1
                 t, direction, data = chunk.t, chunk.dir, chunk.data
                 framer = framers.get(direction)
                 if chunk.error is None and framer is not None and framer.take_frame(data) is not None:

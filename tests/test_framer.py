@@ -112,3 +112,19 @@ def test_no_valid_frame_is_lost_among_garbage(parts):
     wanted = [raw for kind, raw in parts if kind == "frame"]
     it = iter(found)
     assert all(raw in it for raw in wanted), (wanted, found)  # a subsequence, in order
+
+
+@settings(max_examples=budget(300))
+@given(st.lists(segments, min_size=1, max_size=3), st.booleans())
+def test_take_frame_decides_as_the_byte_by_byte_framer(parts, as_bytearray):
+    """``Framer.take_frame`` (the usual chunk: one whole frame) takes a chunk exactly when the framer fed
+    it byte by byte makes one frame event of all of it; the decision is a pure function of the bytes,
+    the same for ``bytes`` (remembered) and a ``bytearray``, asked once or twice."""
+    chunk = b"".join(raw for _, raw in parts)
+    events = run(chunk, list(range(len(chunk))))
+    whole = len(events) == 1 and isinstance(events[0], FrameBytes)
+    for _ in range(2):
+        framer = Framer()
+        taken = framer.take_frame(bytearray(chunk) if as_bytearray else chunk)
+        assert (taken == 0) == whole and (taken is None) == (not whole)
+        assert framer.bytes_in == (len(chunk) if whole else 0) and framer.pending == 0

@@ -17,6 +17,7 @@ from __future__ import annotations
 import bisect
 import functools
 import re
+from collections.abc import Callable
 from typing import Final, NamedTuple
 
 from . import spec
@@ -73,6 +74,28 @@ def _line_pattern(max_frame: int) -> re.Pattern[bytes]:
     return re.compile(start + b"[^\n]{0,%d}\n" % (max_frame - 2))
 
 
+def _is_one_frame(data: bytes, line: Callable[[bytes], re.Match[bytes] | None]) -> bool:
+    """Is ``data`` exactly one frame: a whole ``line`` (``_line_pattern``) in which no full header starts
+    after the first byte? (With the LF last, no start byte is left undecided.)"""
+    return line(data) is not None and _STRONG.search(data, 1) is None
+
+
+LINE_CACHE: Final = 4096  # distinct lines ``_one_frame_test`` remembers, for each frame length limit
+
+
+@functools.cache
+def _one_frame_test(max_frame: int) -> Callable[[bytes], bool]:
+    """``_is_one_frame`` for frames of at most ``max_frame`` bytes, as a pure function of the bytes: the
+    last ``LINE_CACHE`` distinct lines are remembered (traffic repeats its lines)."""
+    line = _line_pattern(max_frame).fullmatch
+
+    @functools.lru_cache(maxsize=LINE_CACHE)
+    def one_frame(data: bytes) -> bool:
+        return _is_one_frame(data, line)
+
+    return one_frame
+
+
 def _strong_start(buf: bytes | bytearray, p: int) -> int:
     """1 if a full header (``0``/``O`` + known tail) starts at p, 0 if not, _UNDECIDED if the
     buffer ends before that is known."""
@@ -110,6 +133,7 @@ class Framer:
         self._ends: list[int] = []  # stream offset just past each fed chunk still in _buf
         self._times: list[float | None] = []
         self._line = _line_pattern(max_frame).fullmatch  # a whole line starting like a frame
+        self._one_frame = _one_frame_test(max_frame)
 
     @property
     def bytes_in(self) -> int:
@@ -124,8 +148,10 @@ class Framer:
     def take_frame(self, data: bytes) -> int | None:
         """The common chunk: when nothing is pending and ``data`` is exactly one frame (the event ``feed``
         would give), take it and return its stream offset; else None, taking nothing (``feed`` it)."""
-        if self._buf or self._line(data) is None or _STRONG.search(data, 1) is not None:
-            return None  # (with the LF last, no start byte is left undecided)
+        if self._buf:
+            return None
+        if not (self._one_frame(data) if type(data) is bytes else _is_one_frame(data, self._line)):
+            return None  # (a bytearray cannot be remembered)
         offset = self._base
         self._base = offset + len(data)
         return offset
