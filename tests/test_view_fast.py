@@ -31,6 +31,7 @@ from rich.text import Text
 from strategies import frames
 from test_decode_equivalence import chunks_of, cuts, events, gaps, line_error_at
 
+from sniffer import json_lines
 from sniffer import view as view_mod
 from sniffer.analyzer import Analyzer
 from sniffer.records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, TimeoutRecord
@@ -80,13 +81,34 @@ def plain_text(record: Record) -> str:
 
 
 def assert_views_say_what_records_say(records: list[Record]) -> None:
-    """Each record: the JSON line is ``to_json()`` (raising where it raises); the text the pieces'."""
+    """Each record: the JSON line is ``to_json()`` (raising where it raises); the text the pieces'. Then
+    ``assert_one_view_says_what_records_say``."""
     for record in records:
         assert _outcome(lambda r=record: JsonlView(io.StringIO()).line(r)) == \
             _outcome(lambda r=record: r.to_json() + "\n")
         text = TextView(io.StringIO(), color=False)
         got = _outcome(lambda r=record, v=text: (v.write(r), v.flush(), v.stream.getvalue())[2])
         assert got == _outcome(lambda r=record: plain_text(r)), record
+    assert_one_view_says_what_records_say(records)
+
+
+def assert_one_view_says_what_records_say(records: list[Record]) -> None:
+    """One view of each kind over the whole stream (as a decode has), offline and live, in one batch and
+    record by record: every line is its own record's, whatever the records before it held."""
+    ok = [r for r in records if _outcome(lambda r=r: (r.to_json(), plain_text(r)))[0] == "ok"]
+    expected = {"jsonl": "".join(r.to_json() + "\n" for r in ok), "text": "".join(map(plain_text, ok))}
+    for live in (False, True):
+        for by_record in (False, True):
+            views = {"jsonl": JsonlView(io.StringIO(), live=live),
+                     "text": TextView(io.StringIO(), color=False, live=live)}
+            for fmt, view in views.items():
+                if by_record:
+                    for record in ok:
+                        view.write(record)
+                else:
+                    view.write_many(ok)
+                view.flush()
+                assert view.stream.getvalue() == expected[fmt], (fmt, live, by_record)
 
 
 # ---------------------------------------------------------------- conversations ----
@@ -220,6 +242,35 @@ def test_views_on_hand_built_records(records):
     assert_views_say_what_records_say(records)
 
 
+# frames for bytes they may not hold: a command and its echo share their bytes (0WS), equal copies, a
+# value that prints like another (True, 1), no frame
+SHARED_FRAMES = [fr.WriteOutputs(o=3), fr.WriteOutputsAnswer(o=3), copy.copy(fr.WriteOutputsAnswer(o=3)),
+                 fr.WriteOutputs(o=2), fr.ReadPoint(n=1), fr.ReadPoint.unchecked(n=True), fr.ReadPoint(n=2),
+                 fr.AlarmAnswer(code=0x0E), fr.ReadVersionAnswer(version="100"), None]
+
+
+@st.composite
+def shared_bytes(draw: Any) -> list[Record]:
+    """Clean frame records of two byte strings, each with any frame, header and direction."""
+    records: list[Record] = []
+    for k in range(draw(st.integers(1, 30))):
+        records.append(FrameRecord(
+            i=k, t=T0 + k * 0.01, dir=draw(st.sampled_from(["host", "device"])),
+            raw=draw(st.sampled_from([b"0WS3\r\n", b"0RP1\r\n"])),
+            header=draw(st.sampled_from([None, "0WS", "0RP", spec.ALARM_HEADER, "0RV"])),
+            frame=draw(st.sampled_from(SHARED_FRAMES)), reply_to=draw(st.sampled_from([None, k - 1])),
+            latency_s=draw(st.sampled_from([None, 0.0021, 0.5]))))
+    return records
+
+
+@settings(max_examples=100, deadline=None)
+@given(shared_bytes())
+def test_records_sharing_bytes_each_get_their_own_line(records):
+    """The views make a frame's part of a line once per distinct frame: a record whose bytes an earlier
+    record had, with another frame (even an equal one), header or direction, still gets its own line."""
+    assert_one_view_says_what_records_say(records)
+
+
 @pytest.mark.parametrize("live", [False, True])
 def test_write_many_batches_like_write(live):
     """Offline, ``write_many`` gathers ``BATCH_LINES`` lines a write; live, a write (and flush) a line;
@@ -252,8 +303,8 @@ def _ties(scale: int, digits: int, count: int) -> list[float]:
                  st.sampled_from([0.001, 2.0**32 - 2**-21, 4294967295.9999995, *_ties(1 << 30, 6, 20),
                                   *_ties(1, 6, 20), *_ties(8192, 6, 20)])))
 def test_fixed_is_repr_of_round_to_6_digits(x):
-    assert view_mod._fixed(x, 6) == repr(round(x, 6))
-    assert view_mod._json_t(x) == json.dumps(round(x, 6))
+    assert json_lines.fixed(x, 6) == repr(round(x, 6))
+    assert json_lines.json_t(x) == json.dumps(round(x, 6))
 
 
 @settings(max_examples=1500, deadline=None)
@@ -262,8 +313,8 @@ def test_fixed_is_repr_of_round_to_6_digits(x):
                                   *_ties(1, 3, 20), *_ties(1000, 3, 20)])))
 def test_fixed_is_repr_of_round_to_3_digits(x):
     if x < 1e12:
-        assert view_mod._fixed(x, 3) == repr(round(x, 3))
-    assert view_mod._json_ms(x / 1000.0) == json.dumps(round(x / 1000.0 * 1000.0, 3))
+        assert json_lines.fixed(x, 3) == repr(round(x, 3))
+    assert json_lines.json_ms(x / 1000.0) == json.dumps(round(x / 1000.0 * 1000.0, 3))
 
 
 @settings(max_examples=1000, deadline=None)
@@ -271,9 +322,9 @@ def test_fixed_is_repr_of_round_to_3_digits(x):
                  st.booleans()))
 def test_json_numbers_of_any_value(x):
     """Whatever ``to_dict`` holds: NaN, infinities, ints, booleans, None."""
-    assert view_mod._json_t(x) == json.dumps(None if x is None else round(x, 6))
-    assert view_mod._json_ms(x) == json.dumps(None if x is None else round(x * 1000.0, 3))
-    assert view_mod._json_number(x) == json.dumps(x)
+    assert json_lines.json_t(x) == json.dumps(None if x is None else round(x, 6))
+    assert json_lines.json_ms(x) == json.dumps(None if x is None else round(x * 1000.0, 3))
+    assert json_lines.json_number(x) == json.dumps(x)
 
 
 def datetime_clock(t: Any) -> str:
