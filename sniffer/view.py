@@ -11,15 +11,15 @@ share these.
 Speed: a batch of records is formatted in one loop (``write_many``); a clean frame record's line is its
 numbers around a part made once per distinct frame (``sniffer.frame_parts``; the JSON line exactly as
 ``json.dumps`` of its ``to_dict`` reads, ``sniffer.json_lines``; tests/test_view_fast.py), the clock of
-the last whole second is remembered (``_Clock``), and offline lines are written in batches (``_Lines``).
+the last whole second is remembered (``clock_second``), and offline lines are written in batches (``_Lines``).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import math
 from collections.abc import Iterable
 from itertools import islice
-from math import modf
 from typing import IO, Any, Protocol
 
 from rich.console import Console
@@ -65,36 +65,18 @@ def show_time(t: float | None) -> str:
     return f"{d.hour:02d}:{d.minute:02d}:{d.second:02d}.{d.microsecond // 1000:03d}"
 
 
-class _Clock:
-    """``show_time`` with the clock of the last whole second remembered: ``datetime.fromtimestamp`` splits
-    a float time into whole seconds and microseconds (C ``modf``, microseconds rounded half to even, carried
-    into the seconds) and the clock depends on the whole seconds only; that split is done here the same
-    way. Anything else (no time, not a float, NaN, infinite, absurd) goes to ``show_time``. (The local
-    time zone is read once a second: a ``time.tzset`` inside a second shows from the next.)"""
-
-    __slots__ = ("_second", "_prefix")
-
-    def __init__(self) -> None:
-        self._second: float | None = None
-        self._prefix = ""  # "HH:MM:SS." of ``_second``
-
-    def show(self, t: Any) -> str:
-        if type(t) is not float or t - t != 0.0:
-            return show_time(t)
-        frac, whole = modf(t)
-        us = round(frac * 1e6)
-        if us >= 1_000_000:
-            us -= 1_000_000
-            whole += 1.0
-        elif us < 0:
-            us += 1_000_000
-            whole -= 1.0
-        if whole != self._second:
-            shown = show_time(t)
-            if "?" not in shown:  # not a damaged time: "HH:MM:SS.mmm", the clock of ``whole``
-                self._second, self._prefix = whole, shown[:-3]
-            return shown
-        return self._prefix + _MS[us // 1000]
+def clock_second(t: Any, shown: str) -> float | None:
+    """The whole second whose clock ``shown`` (``show_time(t)``) shows, for a time from 0 that
+    ``datetime.fromtimestamp`` does not round up into the next second; else None (no time, not a float,
+    damaged, negative). ``datetime`` splits a float time with C ``modf`` and rounds the microseconds half
+    to even; for a time ``t`` inside that second, ``t - second`` is exactly the fraction ``modf`` gives,
+    so ``round((t - second) * 1e6)`` is the microsecond it rounds to (``TextView.write_many`` shows the
+    clock of the times inside the last second so). The local time zone is read once a second: a
+    ``time.tzset`` inside a second shows from the next."""
+    if type(t) is not float or "?" in shown or not t >= 0.0:
+        return None
+    second = float(int(t))
+    return second if round((t - second) * 1e6) < 1_000_000 else None
 
 
 class _Lines:
@@ -184,7 +166,8 @@ class TextView:
         # no colour system (a file, a pipe, --no-color): a line is the plain text of its pieces
         self._plain = self.console.color_system is None
         self._lines = _Lines(stream, live)
-        self._clock = _Clock()
+        self._second = math.nan  # the whole second of the last clock shown (``clock_second``)
+        self._prefix = ""  # its clock, "HH:MM:SS."
         self._middles = FrameParts(_middle)
 
     def _print(self, parts: list[Part]) -> None:
@@ -210,43 +193,55 @@ class TextView:
                 self._write_pieces(record)
             return
         kept, made = self._middles.kept, self._middles.made
-        show_time_of, lines = self._clock.show, self._lines
+        lines = self._lines
         pending = lines.pending
-        for record in records:
-            if type(record) is not FrameRecord:
-                self._write_pieces(record)
-                continue
-            (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last,
-             line_errors, _sides, _window) = record
-            if violations or line_errors or type(i) is not int or type(raw) is not bytes:
-                self._write_pieces(record)
-                continue
-            by_raw = kept.get(direction)
-            known = None if by_raw is None else by_raw.get(raw)
-            if known is not None and known[0] is frame and known[1] == header:
-                shown = known[2]
-            else:
-                made_now = made(direction, raw, header, frame)
-                if made_now is None:
+        second, prefix = self._second, self._prefix
+        try:
+            for record in records:
+                if type(record) is not FrameRecord:
                     self._write_pieces(record)
                     continue
-                shown = made_now
-            if direction != "device" or reply_to is None:
-                tail = ""
-            elif type(reply_to) is not int:
-                self._write_pieces(record)
-                continue
-            elif latency is None:
-                tail = f"  re #{reply_to}"
-            else:  # _tail
-                tail = f"  re #{reply_to}  {round(latency * 1000.0, 3):.1f} ms"
-            line = f"{show_time_of(t)} #{i:<4} {shown}{tail}\n"
-            if lines.batched:  # lines.add(line)
-                pending.append(line)
-                if len(pending) >= BATCH_LINES:
-                    lines.write_pending()
-            else:
-                lines.add(line)
+                (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last,
+                 line_errors, _sides, _window) = record
+                if violations or line_errors or type(i) is not int or type(raw) is not bytes:
+                    self._write_pieces(record)
+                    continue
+                by_raw = kept.get(direction)
+                known = None if by_raw is None else by_raw.get(raw)
+                if known is not None and known[0] is frame and known[1] == header:
+                    shown = known[2]
+                else:
+                    made_now = made(direction, raw, header, frame)
+                    if made_now is None:
+                        self._write_pieces(record)
+                        continue
+                    shown = made_now
+                if direction != "device" or reply_to is None:
+                    tail = ""
+                elif type(reply_to) is not int:
+                    self._write_pieces(record)
+                    continue
+                elif latency is None:
+                    tail = f"  re #{reply_to}"
+                else:  # _tail
+                    tail = f"  re #{reply_to}  {round(latency * 1000.0, 3):.1f} ms"
+                if (type(t) is float and 0.0 <= (into := t - second) < 1.0
+                        and (us := round(into * 1e6)) < 1_000_000):  # inside the last second shown
+                    clock = prefix + _MS[us // 1000]
+                else:
+                    clock = show_time(t)
+                    whole = clock_second(t, clock)
+                    if whole is not None:
+                        second, prefix = whole, clock[:-3]
+                line = f"{clock} #{i:<4} {shown}{tail}\n"
+                if lines.batched:  # lines.add(line)
+                    pending.append(line)
+                    if len(pending) >= BATCH_LINES:
+                        lines.write_pending()
+                else:
+                    lines.add(line)
+        finally:
+            self._second, self._prefix = second, prefix
 
     def _write_pieces(self, record: Record) -> None:
         """A record's line, violations and line errors, each printed from its styled pieces."""
@@ -255,13 +250,13 @@ class TextView:
             self._print(parts)
 
     def line(self, record: Record) -> list[Part]:
-        if isinstance(record, TimeoutRecord):  # seldom two in a second: not worth the clock
+        if isinstance(record, TimeoutRecord):
             when = show_time(record.t)
             waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
             return [(f"{when}       ", ""),
                     (f"device ✗ no answer to #{record.command} ({record.header or 'unknown'}){waited}",
                      "bold red")]
-        head = [(f"{self._clock.show(record.t)} #{record.i:<4} ", ""), *_body(record)]
+        head = [(f"{show_time(record.t)} #{record.i:<4} ", ""), *_body(record)]
         if isinstance(record, JunkRecord):
             return head
         tail = _tail(record) if record.dir == "device" and record.reply_to is not None else ""

@@ -303,8 +303,10 @@ def _ties(scale: int, digits: int, count: int) -> list[float]:
                  st.sampled_from([0.001, 2.0**32 - 2**-21, 4294967295.9999995, *_ties(1 << 30, 6, 20),
                                   *_ties(1, 6, 20), *_ties(8192, 6, 20)])))
 def test_fixed_is_repr_of_round_to_6_digits(x):
+    """A time as ``json.dumps(round(t, 6))``, by the helper and in a record's line."""
     assert json_lines.fixed(x, 6) == repr(round(x, 6))
     assert json_lines.json_t(x) == json.dumps(round(x, 6))
+    assert_line_is_to_json(t=x)
 
 
 @settings(max_examples=1500, deadline=None)
@@ -312,9 +314,11 @@ def test_fixed_is_repr_of_round_to_6_digits(x):
                  st.sampled_from([0.001, 1.2345, 1.0005, 2.5e-3, 999999999999.9995, 999999999999.9996,
                                   *_ties(1, 3, 20), *_ties(1000, 3, 20)])))
 def test_fixed_is_repr_of_round_to_3_digits(x):
+    """A latency in ms as ``json.dumps(round(ms, 3))``, by the helper and in a record's line."""
     if x < 1e12:
         assert json_lines.fixed(x, 3) == repr(round(x, 3))
     assert json_lines.json_ms(x / 1000.0) == json.dumps(round(x / 1000.0 * 1000.0, 3))
+    assert_line_is_to_json(latency_s=x / 1000.0)
 
 
 @settings(max_examples=1000, deadline=None)
@@ -325,6 +329,16 @@ def test_json_numbers_of_any_value(x):
     assert json_lines.json_t(x) == json.dumps(None if x is None else round(x, 6))
     assert json_lines.json_ms(x) == json.dumps(None if x is None else round(x * 1000.0, 3))
     assert json_lines.json_number(x) == json.dumps(x)
+    assert_line_is_to_json(t=x, latency_s=x, i=x if type(x) is int else 7, reply_to=x)
+
+
+def assert_line_is_to_json(**numbers: Any) -> None:
+    """An answer's JSON line with these numbers is its ``to_json()``."""
+    frame = fr.ReadCurrentAnswer(n=3, v=9, a=3, o=1, pos=0x12345)
+    values = dict(i=7, t=T0, dir="device", raw=frame.to_bytes(), header=frame.HEADER, frame=frame, reply_to=6,
+                  latency_s=0.002)
+    record = FrameRecord(**{**values, **numbers})
+    assert json_lines.JsonLines().line(record) == record.to_json() + "\n"
 
 
 def datetime_clock(t: Any) -> str:
@@ -363,14 +377,37 @@ clock_times = st.one_of(st.floats(), st.sampled_from(EDGE_TIMES), st.floats(-3e1
                         st.sampled_from([-0.0, 1, -5, None]))
 
 
+@st.composite
+def runs_of_times(draw: Any) -> list[Any]:
+    """Times as a capture has them, many in one second: a start (whole seconds and their boundaries, DST
+    changes, small, negative, huge) and steps of up to a third of a second (or exactly onto a boundary)."""
+    start = draw(st.one_of(clock_times.filter(lambda t: isinstance(t, float)),
+                           st.sampled_from([0.0, 0.4, 5.0, 8191.9999995, 2.0**31 - 0.5, T0 + 0.9999994])))
+    steps = draw(st.lists(st.one_of(st.floats(0, 0.34), st.sampled_from([0.0000005, 0.0000001, 0.0005])),
+                          max_size=40))
+    out = [start]
+    for step in steps:
+        out.append(out[-1] + step)
+    return out
+
+
 @pytest.mark.parametrize("zone", ["UTC", "Europe/Berlin", "Australia/Lord_Howe", "America/St_Johns"])
-@settings(max_examples=150, deadline=None)
-@given(st.lists(clock_times, min_size=1, max_size=30))
-def test_clock_shows_what_show_time_shows(zone, ts):
-    """In and out of order, across DST changes (Lord Howe's is half an hour), seconds rounding over."""
+@settings(max_examples=60, deadline=None)
+@given(st.lists(clock_times, min_size=1, max_size=30), runs_of_times())
+@example([T0 + 0.9999996, T0 + 0.5, 3.9999995, 3.25], [T0 + 0.9999995, T0 + 0.75])  # rounded into the next
+def test_text_view_clock_is_datetimes(zone, ts, run):
+    """The text view's clock column (the last whole second remembered) is ``datetime``'s for every time,
+    whatever came before: in and out of order, many in a second, across DST changes (Lord Howe's is
+    half an hour), microseconds rounding into the next second, no time, damaged times."""
     with time_zone(zone):
-        clock = view_mod._Clock()
-        for t in ts + sorted(t for t in ts if isinstance(t, float) and not math.isnan(t)):
-            assert clock.show(t) == datetime_clock(t) == view_mod.show_time(t), t
-
-
+        times = ts + run + sorted(t for t in ts if isinstance(t, float) and not math.isnan(t)) + ts
+        records = [FrameRecord(i=k, t=t, dir="host", raw=b"0RV\r\n", header="0RV", frame=fr.ReadVersion())
+                   for k, t in enumerate(times)]
+        view = TextView(io.StringIO(), color=False, live=False)
+        half = len(records) // 2
+        view.write_many(records[:half])
+        for record in records[half:]:
+            view.write(record)
+        view.flush()
+        shown = [line[:12] for line in view.stream.getvalue().splitlines()]
+        assert shown == [datetime_clock(t) for t in times] == [view_mod.show_time(t) for t in times]
