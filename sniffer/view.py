@@ -233,7 +233,8 @@ class TextView:
                     whole = clock_second(t, clock)
                     if whole is not None:
                         second, prefix = whole, clock[:-3]
-                line = f"{clock} #{i:<4} {shown}{tail}\n"
+                # a record number from 1000 up fills its column: ``{i:<4}`` (slower) pads nothing
+                line = f"{clock} #{i} {shown}{tail}\n" if i >= 1000 else f"{clock} #{i:<4} {shown}{tail}\n"
                 if lines.batched:  # lines.add(line)
                     pending.append(line)
                     if len(pending) >= BATCH_LINES:

@@ -271,6 +271,18 @@ def test_records_sharing_bytes_each_get_their_own_line(records):
     assert_one_view_says_what_records_say(records)
 
 
+def test_record_numbers_of_every_width():
+    """The record number's column (``#`` and four wide, wider numbers as they are) for numbers of every
+    width, negative ones too, on commands and answers."""
+    frame = fr.ReadCurrentAnswer(n=3, v=9, a=3, o=1, pos=0x12345)
+    records: list[Record] = [
+        FrameRecord(i=i, t=T0 + k, dir=direction, raw=frame.to_bytes(), header=frame.HEADER, frame=frame,
+                    reply_to=i - 1, latency_s=0.0021)
+        for k, i in enumerate([0, 7, 99, 100, 999, 1000, 9999, 10000, 123456, -1, -999, -1000, -12345])
+        for direction in ("host", "device")]
+    assert_one_view_says_what_records_say(records)
+
+
 @pytest.mark.parametrize("live", [False, True])
 def test_write_many_batches_like_write(live):
     """Offline, ``write_many`` gathers ``BATCH_LINES`` lines a write; live, a write (and flush) a line;
