@@ -223,8 +223,11 @@ class TextView:
                     continue
                 elif latency is None:
                     tail = f"  re #{reply_to}"
-                else:  # _tail
-                    tail = f"  re #{reply_to}  {round(latency * 1000.0, 3):.1f} ms"
+                elif (type(ms := latency * 1000.0) is float and 0.0 <= ms < 1e6
+                      and abs(ms * 10.0 % 1.0 - 0.5) > 0.006):  # see above _tail
+                    tail = f"  re #{reply_to}  {ms:.1f} ms"
+                else:
+                    tail = f"  re #{reply_to}  {round(ms, 3):.1f} ms"
                 if (type(t) is float and 0.0 <= (into := t - second) < 1.0
                         and (us := round(into * 1e6)) < 1_000_000):  # inside the last second shown
                     clock = prefix + _MS[us // 1000]
@@ -310,6 +313,10 @@ def _middle(direction: Any, raw: bytes, header: str | None, frame: Any) -> str |
     return None if "\t" in shown else shown
 
 
+# ``TextView.write_many`` shows a latency of ``ms`` milliseconds (from 0 up to 1e6) as ``f"{ms:.1f}"``
+# when no tie of the one-decimal rounding (``k.k5``) is within 0.0006 ms of it: rounding to 3 decimals
+# first (``_tail``: ``latency_ms``, ``round(ms, 3)``) moves it by 0.0005 ms at most, never across that
+# tie, so both give the same digit. ``ms * 10.0 % 1.0`` is that fraction to within 1e-9 below 1e6 ms.
 def _tail(record: FrameRecord) -> str:
     """The end of an answer's line: the command it answers and the latency."""
     tail = f"  re #{record.reply_to}"

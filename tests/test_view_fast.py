@@ -263,7 +263,7 @@ def shared_bytes(draw: Any) -> list[Record]:
     return records
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=50, deadline=None)
 @given(shared_bytes())
 def test_records_sharing_bytes_each_get_their_own_line(records):
     """The views make a frame's part of a line once per distinct frame: a record whose bytes an earlier
@@ -280,6 +280,28 @@ def test_record_numbers_of_every_width():
                     reply_to=i - 1, latency_s=0.0021)
         for k, i in enumerate([0, 7, 99, 100, 999, 1000, 9999, 10000, 123456, -1, -999, -1000, -12345])
         for direction in ("host", "device")]
+    assert_one_view_says_what_records_say(records)
+
+
+# latencies (ms) at and around the ties of one-decimal rounding, k.k5, where rounding to 3 decimals first
+# can move the digit: exactly on it, 0.0005 either side, and the limits of the text view's shortcut
+NEAR_TIES = [0.0, 0.0005, -0.0005, 0.0004999, -0.0005001, 0.0006, -0.0006, 0.00061, -0.00061, 0.001]
+latencies_near_ties = st.one_of(
+    st.tuples(st.integers(0, 10**7), st.sampled_from(NEAR_TIES)).map(lambda kd: (kd[0] + 0.5) / 10 + kd[1]),
+    st.tuples(st.integers(0, 10**7), st.floats(-0.002, 0.002)).map(lambda kd: (kd[0] + 0.5) / 10 + kd[1]),
+    st.floats(0, 2e6), st.sampled_from([999999.95, 1e6, 1e6 + 0.05, 0.05, 0.0495, 0.0505]))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(latencies_near_ties, min_size=1, max_size=20))
+def test_text_view_latency_is_round_to_3_then_1_digit(ms):
+    """An answer's latency on its text line is ``latency_ms`` (rounded to 3 decimals) shown with one
+    decimal, also where rounding twice differs from rounding once (near a tie of the one-decimal
+    rounding)."""
+    frame = fr.ReadCurrentAnswer(n=3, v=9, a=3, o=1, pos=0x12345)
+    records: list[Record] = [
+        FrameRecord(i=k, t=T0 + k, dir="device", raw=frame.to_bytes(), header=frame.HEADER, frame=frame,
+                    reply_to=k - 1, latency_s=x / 1000.0) for k, x in enumerate(ms)]
     assert_one_view_says_what_records_say(records)
 
 
