@@ -6,8 +6,9 @@ How this works: a frame record's line is its numbers (``i``, ``t``; on an answer
 and frame only (``middle``), made once per distinct frame (``sniffer.frame_parts``). A middle is made
 from a format per frame class, built at import from the frame classes of ``spec.FRAME_SPECS`` (the
 field names in ``to_dict``'s order, each field a JSON number); numbers as ``json.dumps`` of
-``round(x, 6)`` gives them (``fixed``). Anything else (a violation, a line error, a value of an unusual
-type, a text field, junk, timeouts) is the record's ``to_dict`` through ``json`` itself.
+``round(x, 6)`` gives them (``fixed``); a record's violations, sides, details and line errors, when it
+has them, as JSON lists of strings (``_noted``). Anything else (a value of an unusual type, a text
+field, junk, timeouts) is the record's ``to_dict`` through ``json`` itself.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from xac1_proto import spec
 from xac1_proto.frames import FRAME_CLASSES
 
 from .frame_parts import FrameParts
-from .records import FrameRecord, JunkRecord, Record, TimeoutRecord, field_names
+from .records import FrameRecord, JunkRecord, Record, TimeoutRecord, field_names, sides_of
 
 # ``json.dumps(x, separators=(",", ":"))``, the encoder made once (``Record.to_json``)
 ENCODE: Final[Callable[[Any], str]] = json.JSONEncoder(separators=(",", ":")).encode
@@ -98,6 +99,10 @@ def json_line(record: Record) -> str:
     return record.to_json() + "\n"
 
 
+_CLEAN: Final = '"violations":[],"sides":[]'
+_UNJUDGED: Final = -len(_CLEAN)  # a middle but its (clean) violations and sides
+
+
 def middle(direction: Any, raw: Any, header: Any, frame: Any) -> str | None:
     """A clean frame record's JSON from ``"dir"`` to ``"sides"`` (its direction, bytes, header and
     frame); None when a value is not of the usual types (the line is then ``json``'s)."""
@@ -121,8 +126,20 @@ def middle(direction: Any, raw: Any, header: Any, frame: Any) -> str | None:
         if tuple(map(type, values)) != types:
             return None
         fields = fmt % values
-    return (f'"dir":{shown_dir},"raw":"{raw.hex()}","header":{shown_header},"fields":{fields},'
-            f'"violations":[],"sides":[]')
+    return f'"dir":{shown_dir},"raw":"{raw.hex()}","header":{shown_header},"fields":{fields},{_CLEAN}'
+
+
+def _noted(record: FrameRecord) -> tuple[str, str] | None:
+    """A frame record's ``"violations"`` and ``"sides"``, and its optional ``"details"`` and
+    ``"line_errors"`` (with their leading comma), as its JSON line has them; None when one of them is not
+    a tuple of strings (the line is then ``json``'s)."""
+    lists = (record.violations, sides_of(record), record.details, record.line_errors)  # as ``to_dict``
+    if not all(type(items) is tuple and all(type(x) is str for x in items) for items in lists):
+        return None
+    codes, sides, details, line_errors = ("[" + ",".join(map(ENCODE, items)) + "]" for items in lists)
+    notes = (f',"details":{details}' if record.details else "") + \
+        (f',"line_errors":{line_errors}' if record.line_errors else "")
+    return f'"violations":{codes},"sides":{sides}', notes
 
 
 class JsonLines:
@@ -150,7 +167,7 @@ class JsonLines:
                 continue
             (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last,
              line_errors, sides, _window) = record
-            if violations or details or line_errors or sides or type(i) is not int or type(raw) is not bytes:
+            if type(i) is not int or type(raw) is not bytes:
                 append(json_line(record))
                 continue
             by_raw = kept.get(direction)
@@ -163,6 +180,14 @@ class JsonLines:
                     append(json_line(record))
                     continue
                 shown = made_now
+            notes = ""
+            if violations or details or line_errors or sides:
+                noted = _noted(record)
+                if noted is None:
+                    append(json_line(record))
+                    continue
+                judged, notes = noted
+                shown = shown[:_UNJUDGED] + judged
             if type(t) is float and 0.001 <= t < _T_MAX:  # json_t(t)
                 shown_t = f"{t:.6f}".rstrip("0")
                 if shown_t[-1] == ".":
@@ -170,7 +195,7 @@ class JsonLines:
             else:
                 shown_t = json_t(t)
             if direction != "device":
-                append(f'{{"type":"frame","i":{i},"t":{shown_t},{shown}}}\n')
+                append(f'{{"type":"frame","i":{i},"t":{shown_t},{shown}{notes}}}\n')
                 continue
             ms = latency * 1000.0 if type(latency) is float else None
             if ms is not None and 0.001 <= ms < _MS_MAX:  # json_ms(latency)
@@ -181,4 +206,4 @@ class JsonLines:
                 shown_ms = json_ms(latency)
             shown_reply = reply_to if type(reply_to) is int else json_number(reply_to)
             append(f'{{"type":"frame","i":{i},"t":{shown_t},{shown},"reply_to":{shown_reply},'
-                   f'"latency_ms":{shown_ms}}}\n')
+                   f'"latency_ms":{shown_ms}{notes}}}\n')
