@@ -184,10 +184,10 @@ class TextView:
         self.write_many((record,))
 
     def write_many(self, records: Iterable[Record]) -> None:
-        """``write`` each record: its line, then its violations and line errors. Without colour, a clean
-        frame record's line is one format of its numbers around its middle (``_middle``, made once per
-        distinct frame: ``sniffer.frame_parts``); any other record is printed from
-        its styled pieces (``_write_pieces``)."""
+        """``write`` each record: its line, then its violations and line errors. Without colour, a frame
+        record's line is one format of its numbers around its middle (``_middle``, made once per distinct
+        frame: ``sniffer.frame_parts``); any other line is printed from its styled pieces
+        (``_write_pieces``, ``_after``)."""
         if not self._plain:
             for record in records:
                 self._write_pieces(record)
@@ -203,7 +203,7 @@ class TextView:
                     continue
                 (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last,
                  line_errors, _sides, _window) = record
-                if violations or line_errors or type(i) is not int or type(raw) is not bytes:
+                if type(i) is not int or type(raw) is not bytes:
                     self._write_pieces(record)
                     continue
                 by_raw = kept.get(direction)
@@ -244,6 +244,9 @@ class TextView:
                         lines.write_pending()
                 else:
                     lines.add(line)
+                if violations or line_errors:
+                    for parts in _after(record):
+                        self._print(parts)
         finally:
             self._second, self._prefix = second, prefix
 
