@@ -1,8 +1,10 @@
-"""The views write what the records say: ``JsonlView`` a frame record's line formatted by hand
-(``_frame_json``) exactly as ``record.to_json()`` reads, ``TextView`` without colour the plain text of the
-styled pieces that ``TextView.line`` and ``violation_parts`` give (rich's rendering where a tab is), and
-the number helpers (``_fixed``, ``_json_t``, ``_json_ms``, ``_Clock``) exactly as ``json.dumps``/``round``
-and ``datetime`` give them.
+"""The views write what the records say: ``JsonlView`` a record's line (``sniffer.json_lines``) exactly as
+``record.to_json()`` reads, ``TextView`` without colour the plain text of the styled pieces that
+``TextView.line`` and ``violation_parts`` give (rich's rendering where a tab is), the number helpers
+(``fixed``, ``json_t``, ``json_ms``) and the text view's clock and latency exactly as ``json.dumps``,
+``round`` and ``datetime`` give them. Each record on its own, and one view over a whole stream (as a
+decode has: the part of a line made once per distinct frame, ``sniffer.frame_parts``, must never carry
+over to a record with another frame, header or direction; the clock's second must never carry over).
 
 Record streams: conversations through ``Analyzer`` (the generators of tests/test_decode_equivalence.py:
 every violation, junk and timing edge, with and without time) and hand-built records with edge values
