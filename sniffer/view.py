@@ -224,7 +224,7 @@ class TextView:
                 elif latency is None:
                     tail = f"  re #{reply_to}"
                 elif (type(ms := latency * 1000.0) is float and 0.0 <= ms < 1e6
-                      and abs(ms * 10.0 % 1.0 - 0.5) > 0.006):  # see above _tail
+                      and abs(ms * 10.0 % 1.0 - 0.5) > 0.006):  # the note above ``_tail``
                     tail = f"  re #{reply_to}  {ms:.1f} ms"
                 else:
                     tail = f"  re #{reply_to}  {round(ms, 3):.1f} ms"
