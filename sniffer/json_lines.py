@@ -56,9 +56,9 @@ _FIELDS: Final = {cls: shape for cls in set(FRAME_CLASSES.values())
 
 def fixed(x: float, digits: int) -> str:
     """``repr(round(x, digits))`` for a float ``x`` from 0.001 up to 2**32 (``digits`` 6) or 1e12 (3).
-    ``"%.*f"`` gives the digits ``round`` rounds to (one correctly rounded conversion: half to even on
-    the float's exact value). ``repr`` gives the shortest digits that read back as that rounded float;
-    those digits, bar trailing zeros, are they: with 3 decimals below 1e12 they are at most 15
+    ``f"{x:.{digits}f}"`` gives the digits ``round`` rounds to (one correctly rounded conversion: half to
+    even on the float's exact value). ``repr`` gives the shortest digits that read back as that rounded
+    float; those digits, bar trailing zeros, are they: with 3 decimals below 1e12 they are at most 15
     significant digits (which always read back unchanged); with 6 below 2**32 a float's step is under
     1e-6, so no other 6-decimal number reads back as the same float."""
     text = f"{x:.{digits}f}".rstrip("0")
