@@ -247,21 +247,25 @@ class _Outputs:
                                   and self.annotate is None)
 
     def emit(self, records: list[Any]) -> None:
-        """Records to every output that takes them."""
+        """Records to every output that takes them (to the view in one call)."""
         if self.plain:
             self.view.write_many(records)
             return
-        tally, show, html_report, view = self.tally, self.show, self.html_report, self.view
-        for record in records:
-            if tally is not None:
-                record = _one_sided(record)
-                if record is None:
-                    continue
-                tally.add(record)
-            if show is not None and show(record):
-                view.write(record)
-            if html_report is not None:
-                html_report.add(record)
+        tally, show, html_report = self.tally, self.show, self.html_report
+        shown: list[Any] = []
+        try:
+            for record in records:
+                if tally is not None:
+                    record = _one_sided(record)
+                    if record is None:
+                        continue
+                    tally.add(record)
+                if show is not None and show(record):
+                    shown.append(record)
+                if html_report is not None:
+                    html_report.add(record)
+        finally:  # Ctrl-C too: the records taken are shown
+            self.view.write_many(shown)
 
     def end(self, records: list[Any]) -> None:
         """The records of the end of the data; the annotated pcapng is closed with them."""

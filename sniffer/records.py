@@ -23,12 +23,17 @@ from xac1_proto.chunk import Direction
 _FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> its field names (Frame.fields' order)
 
 
+def field_names(cls: type) -> tuple[str, ...]:
+    """A frame class's field names in ``Frame.fields``' order, looked up once."""
+    names = _FIELD_NAMES.get(cls)
+    if names is None:
+        names = _FIELD_NAMES[cls] = tuple(f.name for f in dataclasses.fields(cls))
+    return names
+
+
 def frame_fields(frame: Frame) -> dict[str, Any]:
     """``frame.fields()``, the class's field names looked up once."""
-    names = _FIELD_NAMES.get(type(frame))
-    if names is None:
-        names = _FIELD_NAMES[type(frame)] = tuple(f.name for f in dataclasses.fields(frame))
-    return {name: getattr(frame, name) for name in names}
+    return {name: getattr(frame, name) for name in field_names(type(frame))}
 
 
 def _round_t(t: float | None) -> float | None:

@@ -8,19 +8,18 @@ violation with its docs/protocol.md meaning and the detail; errors in red, notic
 when the stream is a terminal (``color`` forces it). ``xac1 sniff``, ``xac1 proxy`` and ``xac1 decode``
 share these.
 
-Speed: a line is formatted straight from the record's fields (a frame record's JSON line by hand, exactly
-as ``json.dumps`` of its ``to_dict`` reads; tests/test_view_fast.py), the clock of the last whole second
-remembered (``_Clock``), and offline lines are written in batches (``_Lines``).
+Speed: a batch of records is formatted in one loop (``write_many``); a clean frame record's line is its
+numbers around a part made once per distinct frame (``sniffer.frame_parts``; the JSON line exactly as
+``json.dumps`` of its ``to_dict`` reads, ``sniffer.json_lines``; tests/test_view_fast.py), the clock of
+the last whole second is remembered (``clock_second``), and offline lines are written in batches (``_Lines``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as _dt
-import json
-from collections.abc import Callable, Iterable
-from math import modf
-from operator import attrgetter
+import math
+from collections.abc import Iterable
+from itertools import islice
 from typing import IO, Any, Protocol
 
 from rich.console import Console
@@ -29,16 +28,9 @@ from rich.text import Text
 
 from xac1_proto import spec
 
-from .records import (
-    CAPTURE_ENDED,
-    FrameRecord,
-    JunkRecord,
-    Record,
-    TimeoutRecord,
-    frame_fields,
-    sides_of,
-    summary_json,
-)
+from .frame_parts import FrameParts
+from .json_lines import JsonLines
+from .records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, TimeoutRecord, sides_of, summary_json
 
 FORMATS = ("text", "jsonl")
 _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
@@ -48,9 +40,6 @@ BATCH_LINES = 512  # an offline view writes this many lines at a time (one write
 
 Part = tuple[str, str]  # a piece of a line and its rich style ("" for none)
 
-# what ``Record.to_json`` does (``json.dumps(to_dict(), separators=(",", ":"))``), the encoder made once
-_ENCODE: Callable[[Any], str] = json.JSONEncoder(separators=(",", ":")).encode
-_RECORD_TYPES = (FrameRecord, JunkRecord, TimeoutRecord)
 _MS = tuple(f"{ms:03d}" for ms in range(1000))
 
 
@@ -76,133 +65,18 @@ def show_time(t: float | None) -> str:
     return f"{d.hour:02d}:{d.minute:02d}:{d.second:02d}.{d.microsecond // 1000:03d}"
 
 
-class _Clock:
-    """``show_time`` with the clock of the last whole second remembered: ``datetime.fromtimestamp`` splits
-    a float time into whole seconds and microseconds (C ``modf``, microseconds rounded half to even, carried
-    into the seconds) and the clock depends on the whole seconds only; that split is done here the same
-    way. Anything else (no time, not a float, NaN, infinite, absurd) goes to ``show_time``. (The local
-    time zone is read once a second: a ``time.tzset`` inside a second shows from the next.)"""
-
-    __slots__ = ("_second", "_prefix")
-
-    def __init__(self) -> None:
-        self._second: float | None = None
-        self._prefix = ""  # "HH:MM:SS." of ``_second``
-
-    def show(self, t: Any) -> str:
-        if type(t) is not float or t - t != 0.0:
-            return show_time(t)
-        frac, whole = modf(t)
-        us = round(frac * 1e6)
-        if us >= 1_000_000:
-            us -= 1_000_000
-            whole += 1.0
-        elif us < 0:
-            us += 1_000_000
-            whole -= 1.0
-        if whole != self._second:
-            shown = show_time(t)
-            if "?" not in shown:  # not a damaged time: "HH:MM:SS.mmm", the clock of ``whole``
-                self._second, self._prefix = whole, shown[:-3]
-            return shown
-        return self._prefix + _MS[us // 1000]
-
-
-def _json_number(x: Any) -> str:
-    """``json.dumps`` of a number (or None, or whatever else ``to_dict`` holds there)."""
-    if type(x) is float and x - x == 0.0:
-        return float.__repr__(x)
-    if type(x) is int:
-        return int.__repr__(x)
-    return _ENCODE(x)
-
-
-def _fixed(x: float, digits: int) -> str:
-    """``repr(round(x, digits))`` for a float ``x`` from 0.001 up to 2**32 (``digits`` 6) or 1e12 (3).
-    ``f"{x:.{digits}f}"`` gives the digits ``round`` rounds to (one correctly rounded conversion: half to
-    even on the float's exact value). ``repr`` gives the shortest digits that read back as that rounded
-    float; those digits, bar trailing zeros, are they: with 3 decimals below 1e12 they are at most 15
-    significant digits (which always read back unchanged); with 6 below 2**32 a float's step is under
-    1e-6, so no other 6-decimal number reads back as the same float."""
-    text = f"{x:.{digits}f}".rstrip("0")
-    return text + "0" if text[-1] == "." else text
-
-
-def _json_t(t: Any) -> str:
-    """``json.dumps(round(t, 6))``: ``to_dict``'s ``t`` (``JsonlView.line`` inlines the usual case)."""
-    if type(t) is float and 0.001 <= t < 4294967296.0:
-        return _fixed(t, 6)
-    return "null" if t is None else _json_number(round(t, 6))
-
-
-def _json_line(record: Record) -> str:
-    """``record.to_json()`` and a newline: the records' own ``to_dict``, encoded by one encoder."""
-    if type(record) in _RECORD_TYPES:
-        return _ENCODE(record.to_dict()) + "\n"
-    return record.to_json() + "\n"
-
-
-_HEADER_JSON = {h: _ENCODE(h) for role in spec.ROLES for h in spec.HEADERS[role]}
-# frame class -> its fields as a JSON object with %d for each value (every field a number), or None
-_FIELDS_FORMAT: dict[type, tuple[str, Callable[[Any], tuple[Any, ...]]] | None] = {}
-_INT = {int}
-
-
-def _fields_format(cls: type) -> tuple[str, Callable[[Any], tuple[Any, ...]]] | None:
-    """A frame class's fields as a JSON object with ``%d`` for each value, and the getter of the values
-    (every field a number); None for a class with a text field."""
-    names = tuple(f.name for f in dataclasses.fields(cls))
-    if not all(spec.FIELDS[name].radix and not spec.FIELDS[name].text for name in names):
+def clock_second(t: Any, shown: str) -> float | None:
+    """The whole second whose clock ``shown`` (``show_time(t)``) shows, for a time from 0 that
+    ``datetime.fromtimestamp`` does not round up into the next second; else None (no time, not a float,
+    damaged, negative). ``datetime`` splits a float time with C ``modf`` and rounds the microseconds half
+    to even; for a time ``t`` inside that second, ``t - second`` is exactly the fraction ``modf`` gives,
+    so ``round((t - second) * 1e6)`` is the microsecond it rounds to (``TextView.write_many`` shows the
+    clock of the times inside the last second so). The local time zone is read once a second: a
+    ``time.tzset`` inside a second shows from the next."""
+    if type(t) is not float or "?" in shown or not t >= 0.0:
         return None
-    get = attrgetter(*names) if len(names) > 1 else (lambda frame: tuple(getattr(frame, n) for n in names))
-    return "{" + ",".join(f'"{name}":%d' for name in names) + "}", get
-
-
-def _fields_json(frame: Any) -> str:
-    """``json.dumps(frame_fields(frame))``: a frame whose fields are all ints through its class's format."""
-    cls = type(frame)
-    if cls not in _FIELDS_FORMAT:
-        _FIELDS_FORMAT[cls] = _fields_format(cls)
-    shape = _FIELDS_FORMAT[cls]
-    if shape is not None:
-        fmt, get = shape
-        values = get(frame)
-        if set(map(type, values)) <= _INT:
-            return fmt % values
-    return _ENCODE(frame_fields(frame))
-
-
-_DIR_JSON = {"host": '"host"', "device": '"device"'}
-
-
-def _frame_json(record: FrameRecord) -> str:
-    """``record.to_json()`` and a newline for a frame record, written out here for the usual record (no
-    violation, no line error, usual types); any other through ``to_dict``."""
-    (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last, line_errors,
-     sides, _window) = record
-    shown_dir = _DIR_JSON.get(direction)
-    if (violations or details or line_errors or sides or type(i) is not int or type(raw) is not bytes
-            or shown_dir is None):
-        return _json_line(record)
-    shown_header = "null" if header is None else _HEADER_JSON.get(header) or _ENCODE(header)
-    fields = "null" if frame is None else _fields_json(frame)
-    head = (f'{{"type":"frame","i":{i},"t":{_json_t(t)},"dir":{shown_dir},"raw":"{raw.hex()}",'
-            f'"header":{shown_header},"fields":{fields},"violations":[],"sides":[]')
-    if direction == "host":
-        return head + "}\n"
-    shown_reply = str(reply_to) if type(reply_to) is int else _json_number(reply_to)
-    return f'{head},"reply_to":{shown_reply},"latency_ms":{_json_ms(latency)}}}\n'
-
-
-def _json_ms(seconds: Any) -> str:
-    """``json.dumps(_ms(seconds))``: ``round(seconds * 1000.0, 3)`` (``JsonlView.line`` inlines the usual
-    case)."""
-    if seconds is None:
-        return "null"
-    ms = seconds * 1000.0
-    if type(ms) is float and 0.001 <= ms < 1e12:
-        return _fixed(ms, 3)
-    return _json_number(round(ms, 3))
+    second = float(int(t))
+    return second if round((t - second) * 1e6) < 1_000_000 else None
 
 
 class _Lines:
@@ -239,36 +113,38 @@ def _is_terminal(stream: IO[str]) -> bool:
 class JsonlView:
     """One JSON object a line (the docs/output.md schema), flushed as it goes when ``live`` (the sniffer);
     an offline decode (``live=False``) writes lines in batches and flushes after the summary. A line is
-    exactly ``record.to_json()``."""
+    exactly ``record.to_json()`` (``sniffer.json_lines``)."""
 
     def __init__(self, stream: IO[str], live: bool = True) -> None:
         self.stream = stream
         self.live = live
         self._lines = _Lines(stream, live)
+        self._json = JsonLines()
 
     def write(self, record: Record) -> None:
-        self._lines.add(self.line(record))
+        self._lines.add(self._json.line(record))
         if self.live:
             self.stream.flush()
 
     def write_many(self, records: Iterable[Record]) -> None:
-        """``write`` each record (offline: no call per line on the way)."""
+        """``write`` each record (offline: the lines of a batch made in one loop)."""
         if self.live or not self._lines.batched:
             for record in records:
                 self.write(record)
             return
-        line, lines = self.line, self._lines
+        lines, extend = self._lines, self._json.extend
         pending = lines.pending
-        for record in records:
-            pending.append(line(record))
-            if len(pending) >= BATCH_LINES:
-                lines.write_pending()
+        remaining = iter(records)
+        while True:  # up to ``BATCH_LINES`` lines pending, then written (a line a record)
+            wanted = BATCH_LINES - len(pending)
+            extend(islice(remaining, wanted), pending)
+            if len(pending) < BATCH_LINES:
+                return
+            lines.write_pending()
 
     def line(self, record: Record) -> str:
-        """``record.to_json()`` and a newline; a frame record's written out by hand (``_frame_json``)."""
-        if type(record) is FrameRecord:
-            return _frame_json(record)
-        return _json_line(record)
+        """``record.to_json()`` and a newline."""
+        return self._json.line(record)
 
     def summary(self, summary: dict[str, Any]) -> None:
         self._lines.add(summary_json(summary) + "\n")
@@ -290,7 +166,9 @@ class TextView:
         # no colour system (a file, a pipe, --no-color): a line is the plain text of its pieces
         self._plain = self.console.color_system is None
         self._lines = _Lines(stream, live)
-        self._clock = _Clock()
+        self._second = math.nan  # the whole second of the last clock shown (``clock_second``)
+        self._prefix = ""  # its clock, "HH:MM:SS."
+        self._middles = FrameParts(_middle)
 
     def _print(self, parts: list[Part]) -> None:
         """One line: what ``console.print`` prints of the pieces."""
@@ -303,64 +181,89 @@ class TextView:
         self.console.print(Text.assemble(*parts))
 
     def write(self, record: Record) -> None:
-        if self._plain and type(record) is FrameRecord and self._write_plain(record):
+        self.write_many((record,))
+
+    def write_many(self, records: Iterable[Record]) -> None:
+        """``write`` each record: its line, then its violations and line errors. Without colour, a frame
+        record's line is one format of its numbers around its middle (``_middle``, made once per distinct
+        frame: ``sniffer.frame_parts``); any other line is printed from its styled pieces
+        (``_write_pieces``, ``_after``)."""
+        if not self._plain:
+            for record in records:
+                self._write_pieces(record)
             return
+        kept, made = self._middles.kept, self._middles.made
+        lines = self._lines
+        pending = lines.pending
+        second, prefix = self._second, self._prefix
+        try:
+            for record in records:
+                if type(record) is not FrameRecord:
+                    self._write_pieces(record)
+                    continue
+                (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last,
+                 line_errors, _sides, _window) = record
+                if type(i) is not int or type(raw) is not bytes:
+                    self._write_pieces(record)
+                    continue
+                by_raw = kept.get(direction)
+                known = None if by_raw is None else by_raw.get(raw)
+                if known is not None and known[0] is frame and known[1] == header:
+                    shown = known[2]
+                else:
+                    made_now = made(direction, raw, header, frame)
+                    if made_now is None:
+                        self._write_pieces(record)
+                        continue
+                    shown = made_now
+                if direction != "device" or reply_to is None:
+                    tail = ""
+                elif type(reply_to) is not int:
+                    self._write_pieces(record)
+                    continue
+                elif latency is None:
+                    tail = f"  re #{reply_to}"
+                elif (type(ms := latency * 1000.0) is float and 0.0 <= ms < 1e6
+                      and abs(ms * 10.0 % 1.0 - 0.5) > 0.006):  # the note above ``_tail``
+                    tail = f"  re #{reply_to}  {ms:.1f} ms"
+                else:
+                    tail = f"  re #{reply_to}  {round(ms, 3):.1f} ms"
+                if (type(t) is float and 0.0 <= (into := t - second) < 1.0
+                        and (us := round(into * 1e6)) < 1_000_000):  # inside the last second shown
+                    clock = prefix + _MS[us // 1000]
+                else:
+                    clock = show_time(t)
+                    whole = clock_second(t, clock)
+                    if whole is not None:
+                        second, prefix = whole, clock[:-3]
+                # a record number from 1000 up fills its column: ``{i:<4}`` (slower) pads nothing
+                line = f"{clock} #{i} {shown}{tail}\n" if i >= 1000 else f"{clock} #{i:<4} {shown}{tail}\n"
+                if lines.batched:  # lines.add(line)
+                    pending.append(line)
+                    if len(pending) >= BATCH_LINES:
+                        lines.write_pending()
+                else:
+                    lines.add(line)
+                if violations or line_errors:
+                    for parts in _after(record):
+                        self._print(parts)
+        finally:
+            self._second, self._prefix = second, prefix
+
+    def _write_pieces(self, record: Record) -> None:
+        """A record's line, violations and line errors, each printed from its styled pieces."""
         self._print(self.line(record))
         for parts in _after(record):
             self._print(parts)
 
-    def write_many(self, records: Iterable[Record]) -> None:
-        """``write`` each record (for the decode loop: one call a batch of records)."""
-        write, plain, write_plain = self.write, self._plain, self._write_plain
-        for record in records:
-            if not (plain and type(record) is FrameRecord and write_plain(record)):
-                write(record)
-
-    def _write_plain(self, record: FrameRecord) -> bool:
-        """A frame record's lines without colour, formatted here (what ``_print`` makes of ``line`` and
-        ``_after``); False when a line holds a tab (the console expands those): nothing was written."""
-        (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last, line_errors,
-         _sides, _window) = record
-        if frame is None:
-            decoded = f"{header or 'unknown'} (not decodable)"
-        else:
-            decoded = str(frame)
-            if header == spec.ALARM_HEADER:
-                decoded += f" ({spec.alarm_meaning(frame.fields()['code'])})"
-        tail = ""
-        if direction == "device" and reply_to is not None:  # _tail
-            tail = f"  re #{reply_to}" if latency is None else \
-                f"  re #{reply_to}  {round(latency * 1000.0, 3):.1f} ms"
-        arrow = "→" if direction == "host" else "←"
-        line = (f"{self._clock.show(t)} #{i:<4} {direction:<6} {arrow} "
-                f"{show_raw(raw):<22} {decoded}{tail}\n")
-        if violations or line_errors:
-            after = ["".join(text for text, _ in parts) + "\n" for parts in _after(record)]
-            if "\t" in line or any("\t" in text for text in after):
-                return False
-            for text in (line, *after):
-                self._lines.add(text)
-            return True
-        if "\t" in line:
-            return False
-        lines = self._lines
-        if lines.batched:  # lines.add(line)
-            pending = lines.pending
-            pending.append(line)
-            if len(pending) >= BATCH_LINES:
-                lines.write_pending()
-        else:
-            lines.add(line)
-        return True
-
     def line(self, record: Record) -> list[Part]:
-        if isinstance(record, TimeoutRecord):  # seldom two in a second: not worth the clock
+        if isinstance(record, TimeoutRecord):
             when = show_time(record.t)
             waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
             return [(f"{when}       ", ""),
                     (f"device ✗ no answer to #{record.command} ({record.header or 'unknown'}){waited}",
                      "bold red")]
-        head = [(f"{self._clock.show(record.t)} #{record.i:<4} ", ""), *_body(record)]
+        head = [(f"{show_time(record.t)} #{record.i:<4} ", ""), *_body(record)]
         if isinstance(record, JunkRecord):
             return head
         tail = _tail(record) if record.dir == "device" and record.reply_to is not None else ""
@@ -396,6 +299,27 @@ def _body(record: FrameRecord | JunkRecord) -> list[Part]:
     return [shown, (f" {decoded}", "")]
 
 
+def _middle(direction: Any, raw: bytes, header: str | None, frame: Any) -> str | None:
+    """A clean frame record's plain line between its number and its tail (what ``_body`` shows:
+    direction, bytes, what they are); None when it holds a tab (rich expands those) or the direction is
+    not text."""
+    if type(direction) is not str:
+        return None
+    arrow = "→" if direction == "host" else "←"
+    if frame is None:
+        decoded = f"{header or 'unknown'} (not decodable)"
+    else:
+        decoded = str(frame)
+        if header == spec.ALARM_HEADER:
+            decoded += f" ({spec.alarm_meaning(frame.fields()['code'])})"
+    shown = f"{direction:<6} {arrow} {show_raw(raw):<22} {decoded}"
+    return None if "\t" in shown else shown
+
+
+# ``TextView.write_many`` shows a latency of ``ms`` milliseconds (from 0 up to 1e6) as ``f"{ms:.1f}"``
+# when no tie of the one-decimal rounding (``k.k5``) is within 0.0006 ms of it: rounding to 3 decimals
+# first (``_tail``: ``latency_ms``, ``round(ms, 3)``) moves it by 0.0005 ms at most, never across that
+# tie, so both give the same digit. ``ms * 10.0 % 1.0`` is that fraction to within 1e-9 below 1e6 ms.
 def _tail(record: FrameRecord) -> str:
     """The end of an answer's line: the command it answers and the latency."""
     tail = f"  re #{record.reply_to}"

@@ -1,8 +1,10 @@
-"""The views write what the records say: ``JsonlView`` a frame record's line formatted by hand
-(``_frame_json``) exactly as ``record.to_json()`` reads, ``TextView`` without colour the plain text of the
-styled pieces that ``TextView.line`` and ``violation_parts`` give (rich's rendering where a tab is), and
-the number helpers (``_fixed``, ``_json_t``, ``_json_ms``, ``_Clock``) exactly as ``json.dumps``/``round``
-and ``datetime`` give them.
+"""The views write what the records say: ``JsonlView`` a record's line (``sniffer.json_lines``) exactly as
+``record.to_json()`` reads, ``TextView`` without colour the plain text of the styled pieces that
+``TextView.line`` and ``violation_parts`` give (rich's rendering where a tab is), the number helpers
+(``fixed``, ``json_t``, ``json_ms``) and the text view's clock and latency exactly as ``json.dumps``,
+``round`` and ``datetime`` give them. Each record on its own, and one view over a whole stream (as a
+decode has: the part of a line made once per distinct frame, ``sniffer.frame_parts``, must never carry
+over to a record with another frame, header or direction; the clock's second must never carry over).
 
 Record streams: conversations through ``Analyzer`` (the generators of tests/test_decode_equivalence.py:
 every violation, junk and timing edge, with and without time) and hand-built records with edge values
@@ -31,6 +33,7 @@ from rich.text import Text
 from strategies import frames
 from test_decode_equivalence import chunks_of, cuts, events, gaps, line_error_at
 
+from sniffer import json_lines
 from sniffer import view as view_mod
 from sniffer.analyzer import Analyzer
 from sniffer.records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, TimeoutRecord
@@ -80,13 +83,34 @@ def plain_text(record: Record) -> str:
 
 
 def assert_views_say_what_records_say(records: list[Record]) -> None:
-    """Each record: the JSON line is ``to_json()`` (raising where it raises); the text the pieces'."""
+    """Each record: the JSON line is ``to_json()`` (raising where it raises); the text the pieces'. Then
+    ``assert_one_view_says_what_records_say``."""
     for record in records:
         assert _outcome(lambda r=record: JsonlView(io.StringIO()).line(r)) == \
             _outcome(lambda r=record: r.to_json() + "\n")
         text = TextView(io.StringIO(), color=False)
         got = _outcome(lambda r=record, v=text: (v.write(r), v.flush(), v.stream.getvalue())[2])
         assert got == _outcome(lambda r=record: plain_text(r)), record
+    assert_one_view_says_what_records_say(records)
+
+
+def assert_one_view_says_what_records_say(records: list[Record]) -> None:
+    """One view of each kind over the whole stream (as a decode has), offline and live, in one batch and
+    record by record: every line is its own record's, whatever the records before it held."""
+    ok = [r for r in records if _outcome(lambda r=r: (r.to_json(), plain_text(r)))[0] == "ok"]
+    expected = {"jsonl": "".join(r.to_json() + "\n" for r in ok), "text": "".join(map(plain_text, ok))}
+    for live in (False, True):
+        for by_record in (False, True):
+            views = {"jsonl": JsonlView(io.StringIO(), live=live),
+                     "text": TextView(io.StringIO(), color=False, live=live)}
+            for fmt, view in views.items():
+                if by_record:
+                    for record in ok:
+                        view.write(record)
+                else:
+                    view.write_many(ok)
+                view.flush()
+                assert view.stream.getvalue() == expected[fmt], (fmt, live, by_record)
 
 
 # ---------------------------------------------------------------- conversations ----
@@ -220,6 +244,69 @@ def test_views_on_hand_built_records(records):
     assert_views_say_what_records_say(records)
 
 
+# frames for bytes they may not hold: a command and its echo share their bytes (0WS), equal copies, a
+# value that prints like another (True, 1), no frame
+SHARED_FRAMES = [fr.WriteOutputs(o=3), fr.WriteOutputsAnswer(o=3), copy.copy(fr.WriteOutputsAnswer(o=3)),
+                 fr.WriteOutputs(o=2), fr.ReadPoint(n=1), fr.ReadPoint.unchecked(n=True), fr.ReadPoint(n=2),
+                 fr.AlarmAnswer(code=0x0E), fr.ReadVersionAnswer(version="100"), None]
+
+
+@st.composite
+def shared_bytes(draw: Any) -> list[Record]:
+    """Clean frame records of two byte strings, each with any frame, header and direction."""
+    records: list[Record] = []
+    for k in range(draw(st.integers(1, 30))):
+        records.append(FrameRecord(
+            i=k, t=T0 + k * 0.01, dir=draw(st.sampled_from(["host", "device"])),
+            raw=draw(st.sampled_from([b"0WS3\r\n", b"0RP1\r\n"])),
+            header=draw(st.sampled_from([None, "0WS", "0RP", spec.ALARM_HEADER, "0RV"])),
+            frame=draw(st.sampled_from(SHARED_FRAMES)), reply_to=draw(st.sampled_from([None, k - 1])),
+            latency_s=draw(st.sampled_from([None, 0.0021, 0.5]))))
+    return records
+
+
+@settings(max_examples=50, deadline=None)
+@given(shared_bytes())
+def test_records_sharing_bytes_each_get_their_own_line(records):
+    """The views make a frame's part of a line once per distinct frame: a record whose bytes an earlier
+    record had, with another frame (even an equal one), header or direction, still gets its own line."""
+    assert_one_view_says_what_records_say(records)
+
+
+def test_record_numbers_of_every_width():
+    """The record number's column (``#`` and four wide, wider numbers as they are) for numbers of every
+    width, negative ones too, on commands and answers."""
+    frame = fr.ReadCurrentAnswer(n=3, v=9, a=3, o=1, pos=0x12345)
+    records: list[Record] = [
+        FrameRecord(i=i, t=T0 + k, dir=direction, raw=frame.to_bytes(), header=frame.HEADER, frame=frame,
+                    reply_to=i - 1, latency_s=0.0021)
+        for k, i in enumerate([0, 7, 99, 100, 999, 1000, 9999, 10000, 123456, -1, -999, -1000, -12345])
+        for direction in ("host", "device")]
+    assert_one_view_says_what_records_say(records)
+
+
+# latencies (ms) at and around the ties of one-decimal rounding, k.k5, where rounding to 3 decimals first
+# can move the digit: exactly on it, 0.0005 either side, and the limits of the text view's shortcut
+NEAR_TIES = [0.0, 0.0005, -0.0005, 0.0004999, -0.0005001, 0.0006, -0.0006, 0.00061, -0.00061, 0.001]
+latencies_near_ties = st.one_of(
+    st.tuples(st.integers(0, 10**7), st.sampled_from(NEAR_TIES)).map(lambda kd: (kd[0] + 0.5) / 10 + kd[1]),
+    st.tuples(st.integers(0, 10**7), st.floats(-0.002, 0.002)).map(lambda kd: (kd[0] + 0.5) / 10 + kd[1]),
+    st.floats(0, 2e6), st.sampled_from([999999.95, 1e6, 1e6 + 0.05, 0.05, 0.0495, 0.0505]))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(latencies_near_ties, min_size=1, max_size=20))
+def test_text_view_latency_is_round_to_3_then_1_digit(ms):
+    """An answer's latency on its text line is ``latency_ms`` (rounded to 3 decimals) shown with one
+    decimal, also where rounding twice differs from rounding once (near a tie of the one-decimal
+    rounding)."""
+    frame = fr.ReadCurrentAnswer(n=3, v=9, a=3, o=1, pos=0x12345)
+    records: list[Record] = [
+        FrameRecord(i=k, t=T0 + k, dir="device", raw=frame.to_bytes(), header=frame.HEADER, frame=frame,
+                    reply_to=k - 1, latency_s=x / 1000.0) for k, x in enumerate(ms)]
+    assert_one_view_says_what_records_say(records)
+
+
 @pytest.mark.parametrize("live", [False, True])
 def test_write_many_batches_like_write(live):
     """Offline, ``write_many`` gathers ``BATCH_LINES`` lines a write; live, a write (and flush) a line;
@@ -252,8 +339,10 @@ def _ties(scale: int, digits: int, count: int) -> list[float]:
                  st.sampled_from([0.001, 2.0**32 - 2**-21, 4294967295.9999995, *_ties(1 << 30, 6, 20),
                                   *_ties(1, 6, 20), *_ties(8192, 6, 20)])))
 def test_fixed_is_repr_of_round_to_6_digits(x):
-    assert view_mod._fixed(x, 6) == repr(round(x, 6))
-    assert view_mod._json_t(x) == json.dumps(round(x, 6))
+    """A time as ``json.dumps(round(t, 6))``, by the helper and in a record's line."""
+    assert json_lines.fixed(x, 6) == repr(round(x, 6))
+    assert json_lines.json_t(x) == json.dumps(round(x, 6))
+    assert_line_is_to_json(t=x)
 
 
 @settings(max_examples=1500, deadline=None)
@@ -261,9 +350,11 @@ def test_fixed_is_repr_of_round_to_6_digits(x):
                  st.sampled_from([0.001, 1.2345, 1.0005, 2.5e-3, 999999999999.9995, 999999999999.9996,
                                   *_ties(1, 3, 20), *_ties(1000, 3, 20)])))
 def test_fixed_is_repr_of_round_to_3_digits(x):
+    """A latency in ms as ``json.dumps(round(ms, 3))``, by the helper and in a record's line."""
     if x < 1e12:
-        assert view_mod._fixed(x, 3) == repr(round(x, 3))
-    assert view_mod._json_ms(x / 1000.0) == json.dumps(round(x / 1000.0 * 1000.0, 3))
+        assert json_lines.fixed(x, 3) == repr(round(x, 3))
+    assert json_lines.json_ms(x / 1000.0) == json.dumps(round(x / 1000.0 * 1000.0, 3))
+    assert_line_is_to_json(latency_s=x / 1000.0)
 
 
 @settings(max_examples=1000, deadline=None)
@@ -271,9 +362,19 @@ def test_fixed_is_repr_of_round_to_3_digits(x):
                  st.booleans()))
 def test_json_numbers_of_any_value(x):
     """Whatever ``to_dict`` holds: NaN, infinities, ints, booleans, None."""
-    assert view_mod._json_t(x) == json.dumps(None if x is None else round(x, 6))
-    assert view_mod._json_ms(x) == json.dumps(None if x is None else round(x * 1000.0, 3))
-    assert view_mod._json_number(x) == json.dumps(x)
+    assert json_lines.json_t(x) == json.dumps(None if x is None else round(x, 6))
+    assert json_lines.json_ms(x) == json.dumps(None if x is None else round(x * 1000.0, 3))
+    assert json_lines.json_number(x) == json.dumps(x)
+    assert_line_is_to_json(t=x, latency_s=x, i=x if type(x) is int else 7, reply_to=x)
+
+
+def assert_line_is_to_json(**numbers: Any) -> None:
+    """An answer's JSON line with these numbers is its ``to_json()``."""
+    frame = fr.ReadCurrentAnswer(n=3, v=9, a=3, o=1, pos=0x12345)
+    values = dict(i=7, t=T0, dir="device", raw=frame.to_bytes(), header=frame.HEADER, frame=frame, reply_to=6,
+                  latency_s=0.002)
+    record = FrameRecord(**{**values, **numbers})
+    assert json_lines.JsonLines().line(record) == record.to_json() + "\n"
 
 
 def datetime_clock(t: Any) -> str:
@@ -312,14 +413,37 @@ clock_times = st.one_of(st.floats(), st.sampled_from(EDGE_TIMES), st.floats(-3e1
                         st.sampled_from([-0.0, 1, -5, None]))
 
 
+@st.composite
+def runs_of_times(draw: Any) -> list[Any]:
+    """Times as a capture has them, many in one second: a start (whole seconds and their boundaries, DST
+    changes, small, negative, huge) and steps of up to a third of a second (or exactly onto a boundary)."""
+    start = draw(st.one_of(clock_times.filter(lambda t: isinstance(t, float)),
+                           st.sampled_from([0.0, 0.4, 5.0, 8191.9999995, 2.0**31 - 0.5, T0 + 0.9999994])))
+    steps = draw(st.lists(st.one_of(st.floats(0, 0.34), st.sampled_from([0.0000005, 0.0000001, 0.0005])),
+                          max_size=40))
+    out = [start]
+    for step in steps:
+        out.append(out[-1] + step)
+    return out
+
+
 @pytest.mark.parametrize("zone", ["UTC", "Europe/Berlin", "Australia/Lord_Howe", "America/St_Johns"])
-@settings(max_examples=150, deadline=None)
-@given(st.lists(clock_times, min_size=1, max_size=30))
-def test_clock_shows_what_show_time_shows(zone, ts):
-    """In and out of order, across DST changes (Lord Howe's is half an hour), seconds rounding over."""
+@settings(max_examples=60, deadline=None)
+@given(st.lists(clock_times, min_size=1, max_size=30), runs_of_times())
+@example([T0 + 0.9999996, T0 + 0.5, 3.9999995, 3.25], [T0 + 0.9999995, T0 + 0.75])  # rounded into the next
+def test_text_view_clock_is_datetimes(zone, ts, run):
+    """The text view's clock column (the last whole second remembered) is ``datetime``'s for every time,
+    whatever came before: in and out of order, many in a second, across DST changes (Lord Howe's is
+    half an hour), microseconds rounding into the next second, no time, damaged times."""
     with time_zone(zone):
-        clock = view_mod._Clock()
-        for t in ts + sorted(t for t in ts if isinstance(t, float) and not math.isnan(t)):
-            assert clock.show(t) == datetime_clock(t) == view_mod.show_time(t), t
-
-
+        times = ts + run + sorted(t for t in ts if isinstance(t, float) and not math.isnan(t)) + ts
+        records = [FrameRecord(i=k, t=t, dir="host", raw=b"0RV\r\n", header="0RV", frame=fr.ReadVersion())
+                   for k, t in enumerate(times)]
+        view = TextView(io.StringIO(), color=False, live=False)
+        half = len(records) // 2
+        view.write_many(records[:half])
+        for record in records[half:]:
+            view.write(record)
+        view.flush()
+        shown = [line[:12] for line in view.stream.getvalue().splitlines()]
+        assert shown == [datetime_clock(t) for t in times] == [view_mod.show_time(t) for t in times]
