@@ -251,6 +251,9 @@ def _inside_frame(event: FrameBytes | Junk) -> bool:
             and event.raw[:1] in (spec.LEAD, spec.LETTER_O) and spec.LF not in event.raw)
 
 
+_frame_record = FrameRecord._make  # the NamedTuple's own constructor from a tuple (no keyword handling)
+
+
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
     """The record of one verdict (the docs/output.md schema)."""
     if v.violations:
@@ -258,11 +261,10 @@ def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -
         codes, sides = v.codes, v.sides
     else:  # the clean frame: the same empty tuples, without the generators
         details = codes = sides = ()
-    kind = v.kind
+    kind, sender, i, raw, header, frame, _violations, reply_to, latency_s, t, t_last, waited_s = v
     if kind == "host-frame" or kind == "device-frame":
-        return FrameRecord(v.i, v.t, v.sender, v.raw, v.header, v.frame,  # type: ignore[arg-type]
-                           codes, details, v.reply_to, v.latency_s, v.t_last, line_errors, sides,
-                           v.waited_s if kind == "host-frame" else None)
+        return _frame_record((i, t, sender, raw, header, frame, codes, details, reply_to, latency_s, t_last,
+                              line_errors, sides, waited_s if kind == "host-frame" else None))
     if kind == "no-answer":
         assert v.reply_to is not None
         return TimeoutRecord(command=v.reply_to, t=v.t, header=v.header, waited_s=v.waited_s,
