@@ -415,30 +415,37 @@ def _clean(n: int, seed: int = 1) -> str:
 
 
 def test_memory_stays_bounded() -> None:
-    """The block buffer holds at most a block and a line; the hex rows remembered are bounded in number
-    and size, whatever the file (long lines, many distinct transfers)."""
-    text = _clean(200) + "x" * 300_000 + "\n" + "".join(
-        f"> 2024/05/01 11:00:00.000001  length=2 from={2 * i} to={2 * i + 1}\n {i >> 8:02x} {i & 255:02x}\n"
-        for i in range(socat_mod._KNOWN + 500))
+    """The block buffer holds at most a block and a line; the hex rows and lengths remembered are bounded
+    in number and size, whatever the file (long lines, many distinct transfers)."""
+    rows, count = [], 0
+    for i in range(socat_mod._KNOWN + 500):  # distinct rows, lengths from 2 to 41 (some on their own)
+        length = 2 + (i % 40 if i < socat_mod._KNOWN else i)
+        rows.append(f"> 2024/05/01 11:00:00.000001  length={length} from={count} to={count + length - 1}\n"
+                    f" {i >> 8:02x} {i & 255:02x}" + " 00" * (length - 2) + "\n")
+        count += length
+    text = _clean(200) + "x" * 300_000 + "\n" + "".join(rows)
     path = Path(_TMP.name) / "big.log"
     path.write_text(text, encoding="latin-1")
     largest, builders = [0], []
-    fill, init = socat_mod._Lines._fill, socat_mod._Transfers.__init__
+    regions, init = socat_mod._Blocks.regions, socat_mod._Transfers.__init__
 
-    def measured_fill(self: Any) -> bool:
-        more = fill(self)
-        largest[0] = max(largest[0], len(self.buf))
-        return more
+    def measured_regions(self: Any) -> Any:
+        for region in regions(self):
+            largest[0] = max(largest[0], len(region[0]))
+            yield region
 
     def kept_init(self: Any, *args: Any) -> None:
         init(self, *args)
         builders.append(self)
 
     with mock.patch.object(socat_mod, "BLOCK", 4096), \
-            mock.patch.object(socat_mod._Lines, "_fill", measured_fill), \
+            mock.patch.object(socat_mod._Blocks, "regions", measured_regions), \
             mock.patch.object(socat_mod._Transfers, "__init__", kept_init), Source(path, Report()) as src:
+        report = src.report
         chunks = list(socat_mod.read(src))
+    assert report.problems and all(p.startswith(f"{path}:401: ") for p in report.problems)  # the long line
     assert len(chunks) == 200 + socat_mod._KNOWN + 500
     assert 4096 < largest[0] <= 4096 + base_mod.MAX_LINE
     assert 0 < len(builders[0].known) <= socat_mod._KNOWN
     assert all(len(row) <= socat_mod._KNOWN_TEXT for row in builders[0].known)
+    assert 0 < len(builders[0].sizes) <= socat_mod._KNOWN
