@@ -449,3 +449,83 @@ def test_memory_stays_bounded() -> None:
     assert 0 < len(builders[0].known) <= socat_mod._KNOWN
     assert all(len(row) <= socat_mod._KNOWN_TEXT for row in builders[0].known)
     assert 0 < len(builders[0].sizes) <= socat_mod._KNOWN
+
+
+# ---------------------------------------------------------------- the block matcher ----
+
+def test_a_header_cut_by_a_line_end_is_not_joined_to_the_next_line() -> None:
+    """A header whose line ends before ``length=`` is no header: that line and the next are each reported
+    at their own line, and every line after keeps its number (a version joined the two lines into one
+    header, and numbered every later line one too low)."""
+    text = ("> 2024/05/01 10:00:00.000001  length=5 from=0 to=4\n 30 52 56 0d 0a\n"
+            "> 2024/05/01 10:00:00.000002\n  length=1 from=5 to=5\n 30\n"
+            "> 2024/05/01 10:00:00.000003  length=3 from=6 to=8\n 30 31\n")
+    events, _, report = read_any_block(text, (socat_mod.BLOCK, 1, 7))
+    path = Path(_TMP.name) / "dump.log"
+    assert [e[2] for e in events] == [b"0RV\r\n0", b"01"]
+    assert report["problems"] == [
+        f"{path}:3: cannot read this dump line: '> 2024/05/01 10:00:00.000002'",
+        f"{path}:4: cannot read this dump line: '  length=1 from=5 to=5'",
+        f"{path}:1: transfer says length=5 but its dump holds 6 byte(s) (cut short before line 6)",
+        f"{path}:6: 1 byte(s) of the '>' side are missing before this transfer (from=6, the previous one "
+        f"ended at to=4)",
+        f"{path}:6: transfer says length=3 but its dump holds 2 byte(s) (cut short before line 7)"]
+
+
+def test_a_second_past_59_is_reported_in_any_minute() -> None:
+    """Second 60 to 99 is no time, whether its minute is new or was seen on the header before: reported
+    at its header, the bytes kept with the previous time (a version said so only of a minute's first
+    header and read a later one as the next minute's time)."""
+    text = ("> 2024/05/01 10:00:08.000001  length=1 from=0 to=0\n 30\n"
+            "> 2024/05/01 10:00:75.000001  length=1 from=1 to=1\n 31\n"
+            "> 2024/05/01 10:01:75.000001  length=1 from=2 to=2\n 32\n")
+    events, _, report = read_any_block(text, (socat_mod.BLOCK, 5))
+    path = Path(_TMP.name) / "dump.log"
+    first = _bits(wallclock("2024/05/01", "10:00:08.000001"))
+    assert [(e[0], e[2]) for e in events] == [(first, b"0"), (first, b"1"), (first, b"2")]
+    assert [p.split(": impossible")[0] for p in report["problems"]] == [f"{path}:3", f"{path}:5"]
+    assert all("second must be in 0..59" in p for p in report["problems"])
+
+
+@st.composite
+def _garbled(draw: st.DrawFn) -> tuple[str, list[tuple[str, bytes, float]], list[int]]:
+    """A clean ``-x`` log with lines of junk put between its transfers: (text, its transfers, the junk's
+    line numbers). Junk is any text that is no header, hex row, diagnostic, blank line or ``--``. (Right
+    after a header, a line that is no hex row is -v text: the transfer's bytes.)"""
+    date, count, second = "2024/05/01", {">": 0, "<": 0}, draw(st.integers(0, 80000))
+    lines: list[str] = []
+    want = []
+    for _ in range(draw(st.integers(1, 30))):
+        side = draw(st.sampled_from("><"))
+        data = draw(st.one_of(st.sampled_from(FRAMES[:6]), st.binary(min_size=1, max_size=40)))
+        second += draw(st.sampled_from([0, 0, 1, 59]))
+        clock = f"{second // 3600 % 24:02d}:{second // 60 % 60:02d}:{second % 60:02d}"
+        fraction = draw(st.sampled_from(["000001", "999999", "500000", "000123456"]))
+        lines.append(f"{side} {date} {clock}.{fraction}  length={len(data)} from={count[side]} "
+                     f"to={count[side] + len(data) - 1}")
+        lines.append(" " + data.hex(" "))
+        count[side] += len(data)
+        read_as = fraction[3:] if len(fraction) == 9 else fraction
+        want.append((side, data, wallclock(date, f"{clock}.{read_as}")))
+    junk = st.from_regex(r"[a-zA-Z#*][ -~]{0,70}", fullmatch=True)
+    spots = sorted(draw(st.lists(st.integers(0, len(lines) // 2), max_size=6)), reverse=True)
+    for at in spots:  # from the end, so that the earlier spots stay where they were drawn
+        lines.insert(2 * at, draw(junk))
+    numbers = [i + 1 for i, line in enumerate(lines) if line[:1] not in "<> "]
+    return "".join(line + "\n" for line in lines), want, numbers
+
+
+@settings(max_examples=60, deadline=None)
+@given(_garbled(), st.sampled_from(BLOCKS) | st.integers(1, 400))
+def test_junk_between_lines_is_reported_at_its_line_and_the_transfers_read_whole(
+        dump: tuple[str, list[tuple[str, bytes, float]], list[int]], block: int) -> None:
+    """Lines of junk between the transfers of a ``-x`` log are each reported once, at their own line, as
+    one line not read; every transfer still reads whole, its time wallclock's; the same at every block size
+    (block ends falling inside transfers and junk alike)."""
+    text, want, numbers = dump
+    events, end, report = read_any_block(text, (socat_mod.BLOCK, block))
+    path = Path(_TMP.name) / "dump.log"
+    assert [(e[1], e[2], e[0]) for e in events] == [
+        ("host" if side == ">" else "device", data, _bits(t)) for side, data, t in want]
+    assert [p.split(": ")[0] for p in report["problems"]] == [f"{path}:{n}" for n in numbers]
+    assert report["unread_lines"] == len(numbers) and report["unread_bytes"] == 0 and end[0] == "end"
