@@ -16,19 +16,23 @@ direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``
 socat appending to the same log starts again at ``from=0``, which is accepted. A header whose time is
 more than a second before the one before it is reported too (``timeline``: the clock was set back).
 
-One parser: the file is read in blocks of ``BLOCK`` characters (``_Lines``: never the whole file), cut
-into lines (numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number).
-Each line is classified (``tokenize``: what a line is) and acted on by the transfer builder
+One parser: the file is read in blocks of ``BLOCK`` characters (``_Blocks``: never the whole file),
+handed on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
+(numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number), every
+character accounted for: the lines that make up almost every dump, a header as socat writes it and the
+hex row after it, as one match with their fields; any other line as itself. The transfer builder
 (``_Transfers``: one chunk per transfer, handed on in bounded pieces; ``length=`` beyond 16 MiB is
-damage), whatever the dump's style and state. ``_Transfers.read`` takes the lines that make up almost
-every dump itself, before any other classification: a header and the hex row after it, matched at once
-(``_HEADER_ROW``; the match fails at once on any other line), then ``_header``'s checks (counters,
-length, time) done in place; a further hex row (a leading space). A hex row's bytes come from
-``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them), else
-from ``_HEX`` itself; short rows are remembered (a conversation repeats itself). Every other line, and
-any line while -v text is being read, goes through ``step``, which does the same for every kind. A
-header's time is its minute's start (``wallclock``, remembered) plus its seconds and fraction, computed
-as ``wallclock`` computes it. -v text is decoded a run of characters at a time.
+damage) takes the header-and-row matches and further hex rows itself (``read``): the counters checked by
+writing the two numbers it expects (``from=`` where the side's last transfer ended, ``to=`` where
+``length=`` ends) and comparing them with the text (read and checked in full, ``_counters``, when they
+differ), the time computed as ``wallclock`` computes it
+(the minute's start remembered, plus the seconds and the fraction). A hex row's bytes come from
+``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them),
+else from ``_HEX`` itself; short rows and lengths are remembered (a conversation repeats itself). Every
+other line, any line while -v text is being read, and a header the match does not take (another
+spelling, a date that is none) go through ``step``: each line
+classified (``tokenize``: what a line is) and acted on the same way for every kind, whatever the dump's
+style and state. -v text is decoded a run of characters at a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
@@ -226,11 +230,12 @@ class _Transfers:
         """Every line of the file, a region of whole lines at a time: ``findall`` cuts it into lines, a
         header and its hex row as one (``_block_matcher``); those, and a further hex row, are taken here;
         every other line, and any line while -v text is being read or after a piece of a long line, goes
-        to ``step`` (see the module docstring). The transfer a header and its row make is held in locals
-        (its bytes, not copied) until the next line shows whether more rows follow; it becomes ``cur``
-        before anything else reads the state. The line number and the last time are locals too, handed
-        to the clocks before anything else."""
-        known, sizes, following, dirs, timeline = self.known, self.sizes, self.following, self.dirs, self.timeline
+        to ``step`` (see the module docstring), then the whole file's last line if it has no line end. A
+        header and its row that hold the transfer whole make its chunk at once, held in a local until the
+        next line shows that no more rows follow (it becomes ``cur`` before anything else reads the state).
+        The line number and the last time are locals too, handed to the clocks before anything else."""
+        known, sizes, following, dirs = self.known, self.sizes, self.following, self.dirs
+        timeline = self.timeline
         tol, max_transfer, new, seconds = TOLERANCE_S, _MAX_TRANSFER, Chunk, _SECONDS
         nine = self.clock.fraction
         findall, minute_ok = _block_matcher(_base.MAX_LINE).findall, _MINUTE.fullmatch
