@@ -22,17 +22,17 @@ handed on as regions of whole lines, which one ``findall`` of ``_block_matcher``
 character accounted for: the lines that make up almost every dump, a header as socat writes it and the
 hex row after it, as one match with their fields; any other line as itself. The transfer builder
 (``_Transfers``: one chunk per transfer, handed on in bounded pieces; ``length=`` beyond 16 MiB is
-damage) takes the header-and-row matches and further hex rows itself (``read``): the counters checked by
-writing the two numbers it expects (``from=`` where the side's last transfer ended, ``to=`` where
-``length=`` ends) and comparing them with the text (read and checked in full, ``_counters``, when they
-differ), the time computed as ``wallclock`` computes it
-(the minute's start remembered, plus the seconds and the fraction). A hex row's bytes come from
+damage) takes the header-and-row matches, further hex rows and the ``--`` that ends a ``-x -v`` transfer
+itself (``read``): the counters checked by writing the two numbers it expects (``from=`` where the
+side's last transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and
+checked in full, ``_counters``, when they differ), the time computed as ``wallclock`` computes it (the
+minute's start remembered, plus the seconds and the fraction). A hex row's bytes come from
 ``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them),
 else from ``_HEX`` itself; short rows and lengths are remembered (a conversation repeats itself). Every
 other line, any line while -v text is being read, and a header the match does not take (another
-spelling, a date that is none) go through ``step``: each line
-classified (``tokenize``: what a line is) and acted on the same way for every kind, whatever the dump's
-style and state. -v text is decoded a run of characters at a time.
+spelling, a date that is none) go through ``step``: each line classified (``tokenize``: what a line is)
+and acted on the same way for every kind, whatever the dump's style and state. -v text is decoded a run
+of characters at a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
@@ -228,7 +228,8 @@ class _Transfers:
 
     def read(self, blocks: _Blocks) -> Iterator[Chunk]:
         """Every line of the file, a region of whole lines at a time: ``findall`` cuts it into lines, a
-        header and its hex row as one (``_block_matcher``); those, and a further hex row, are taken here;
+        header and its hex row as one (``_block_matcher``); those, a further hex row and the ``--`` after
+        a transfer held whole are taken here;
         every other line, and any line while -v text is being read or after a piece of a long line, goes
         to ``step`` (see the module docstring), then the whole file's last line if it has no line end. A
         header and its row that hold the transfer whole make its chunk at once, held in a local until the
@@ -294,6 +295,11 @@ class _Transfers:
                     else:
                         self.cur = _Transfer(number, dirs[mark], t, length)
                         continue
+                elif held is not None and line[:2] == "--" and not continued and line.strip() == "--":
+                    number += 1  # the end of a -x -v transfer held whole (as step's END would end it)
+                    yield held
+                    held = None
+                    continue
                 elif line[:1] == " " and not continued and (held is not None or (cur := self.cur) is not None
                                                             and cur.mode is not _TEXT):
                     number += 1  # a further hex row of the transfer
