@@ -395,7 +395,7 @@ class _Transfers:
     def _hex_row(self, text: str) -> bytes:
         """The bytes of a hex row as ``_HEX`` reads them (empty: not a hex row); short rows remembered."""
         try:
-            data = bytes.fromhex(text[1:])
+            data = bytes.fromhex(text)  # (its leading space skipped as any space between bytes)
         except ValueError:
             data = b""
         if not data or data.hex(" ") != text[1:]:  # not plain: as _HEX reads it, if it does
