@@ -229,12 +229,12 @@ class _Transfers:
     def read(self, blocks: _Blocks) -> Iterator[Chunk]:
         """Every line of the file, a region of whole lines at a time: ``findall`` cuts it into lines, a
         header and its hex row as one (``_block_matcher``); those, a further hex row and the ``--`` after
-        a transfer held whole are taken here;
-        every other line, and any line while -v text is being read or after a piece of a long line, goes
-        to ``step`` (see the module docstring), then the whole file's last line if it has no line end. A
-        header and its row that hold the transfer whole make its chunk at once, held in a local until the
-        next line shows that no more rows follow (it becomes ``cur`` before anything else reads the state).
-        The line number and the last time are locals too, handed to the clocks before anything else."""
+        a transfer held whole are taken here; every other line, and any line while -v text is being read
+        or after a piece of a long line, goes to ``step`` (see the module docstring), then the whole
+        file's last line if it has no line end. A header and its row that hold the transfer whole make
+        its chunk at once, held in a local until the next line shows that no more rows follow (it becomes
+        ``cur`` before anything else reads the state). The line number and the last time are locals too,
+        handed to the clocks before anything else."""
         known, sizes, following, dirs = self.known, self.sizes, self.following, self.dirs
         timeline = self.timeline
         tol, max_transfer, new, seconds = TOLERANCE_S, _MAX_TRANSFER, Chunk, _SECONDS
