@@ -75,7 +75,8 @@ _KNOWN_TEXT: Final = 160  # characters of the longest row remembered
 _TEXT: Final = "text"  # a transfer's mode: -v text (None: not known yet; "hex": hex rows)
 _HEXMODE: Final = "hex"
 
-BLOCK = 1 << 16  # characters read at once (a test makes it tiny so that block ends fall everywhere)
+BLOCK = 1 << 14  # characters read at once: a region, and the list findall makes of it, stay small (a
+# test makes it tiny so that block ends fall everywhere)
 
 
 def sniff(head: list[str]) -> int:
