@@ -529,3 +529,20 @@ def test_junk_between_lines_is_reported_at_its_line_and_the_transfers_read_whole
         ("host" if side == ">" else "device", data, _bits(t)) for side, data, t in want]
     assert [p.split(": ")[0] for p in report["problems"]] == [f"{path}:{n}" for n in numbers]
     assert report["unread_lines"] == len(numbers) and report["unread_bytes"] == 0 and end[0] == "end"
+
+
+@settings(max_examples=40, deadline=None)
+@given(clean_dumps(), st.data())
+def test_line_ends_mixed_anyhow_read_the_same(dump: tuple[str, list[tuple[str, bytes, float]], bool],
+                                              more: st.DataObject) -> None:
+    """A clean -x / -x -v log whose lines end with LF or CR LF, mixed anyhow (the first lines deciding how
+    the block matcher reads line ends), gives the same transfers as with LF alone, and nothing reported."""
+    text, want, v = dump
+    lines = text.split("\n")
+    crlf = more.draw(st.lists(st.booleans(), min_size=len(lines), max_size=len(lines)))
+    mixed = "\n".join(line + "\r" if cr and i < len(lines) - 1 and not v else line
+                      for i, (line, cr) in enumerate(zip(lines, crlf, strict=True)))
+    events, end, report = read_any_block(mixed, (socat_mod.BLOCK, 61))
+    assert [(e[1], e[2], e[0]) for e in events] == [
+        ("host" if side == ">" else "device", data, _bits(t)) for side, data, t in want]
+    assert report["problems"] == [] and end[0] == "end"

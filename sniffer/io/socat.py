@@ -123,17 +123,21 @@ def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
 
 
 @functools.lru_cache(maxsize=8)
-def _block_matcher(max_line: int) -> re.Pattern[str]:
+def _block_matcher(max_line: int, crlf: bool) -> re.Pattern[str]:
     """What ``findall`` cuts a region of whole lines into, each line accounted for (no character skipped):
-    a header as socat writes it (``[0-5]`` seconds, six or nine digits of fraction, two spaces, at most a
-    CR after it) with the line after it when that starts with a space (a hex row, CR and LF excluded);
+    a header as socat writes it (``[0-5]`` seconds, six or nine digits of fraction, two spaces; a CR after
+    it when ``crlf``) with the line after it when that starts with a space (a hex row, CR and LF excluded);
     any other line (up to ``max_line`` characters with its line end); or ``max_line`` characters of a
     longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM`` (its digits checked by ``_MINUTE`` when it
     changes), seconds, fraction (with its point), length, from, to, row; the other line; the piece. A line
-    limit shorter than a header turns the first kind off."""
+    limit shorter than a header turns the first kind off. (A CR that may end a line costs a tenth of the
+    matching: a file whose first lines end with LF alone is matched without; any line ending CR LF in it
+    is then another line, read by ``step``.)"""
     header = (r"([<>]) (.{16}):([0-5][0-9])(\.[0-9]{6}|\.[0-9]{9})  "
               r"length=([0-9]{1,18}) from=([0-9]{1,18}) to=([0-9]{1,18})\r?\n"
               rf"(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
+    if not crlf:
+        header = header.replace(r"\r?", "")
     return re.compile(("" if max_line > _LONGEST_HEADER else "(?!)") + header
                       + rf"|([^\n]{{0,{max_line - 1}}})\n|([^\n]{{{max_line}}})")
 
@@ -240,7 +244,8 @@ class _Transfers:
         timeline = self.timeline
         tol, max_transfer, new, seconds = TOLERANCE_S, _MAX_TRANSFER, Chunk, _SECONDS
         nine = self.clock.fraction
-        findall, minute_ok = _block_matcher(_base.MAX_LINE).findall, _MINUTE.fullmatch
+        crlf = b"\r\n" in self.src.head()  # (nothing is read yet)
+        findall, minute_ok = _block_matcher(_base.MAX_LINE, crlf).findall, _MINUTE.fullmatch
         minute, base = self.minute
         held: Chunk | None = None  # a whole transfer read here, handed on at the next header
         h_line = 0  # its header's line
