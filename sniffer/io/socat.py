@@ -379,8 +379,8 @@ class _Transfers:
         return size
 
     def _counters(self, number: int, mark: str, length: int, start: int, end: int) -> int:
-        """A header's counters and length checked (``read`` found them other than it expected: the first
-        transfer of a side, a restart, a leading zero, damage); the length read."""
+        """A header's counters and length checked (by ``step``, or by ``read`` when it found them other than
+        it expected: the first transfer of a side, a restart, a leading zero, damage); the length read."""
         following = self.following
         if end - start + 1 != length or length > _MAX_TRANSFER or \
                 mark in following and start != following[mark] and start != 0:
@@ -484,13 +484,7 @@ class _Transfers:
     def _header(self, number: int, m: re.Match[str]) -> None:
         """A transfer's header: its counters, length and time checked; it becomes the transfer read."""
         mark, date, clock, frac, length_s, start_s, end_s, tail = m.groups()
-        length, start, end = int(length_s), int(start_s), int(end_s)
-        following = self.following
-        if end - start + 1 != length or length > _MAX_TRANSFER or \
-                mark in following and start != following[mark] and start != 0:
-            length = self._damaged_header(number, mark, length, start, end)
-        else:
-            following[mark] = start + length
+        length = self._counters(number, mark, int(length_s), int(start_s), int(end_s))
         t = None if date is None else self._time(number, date, clock, frac)
         self.cur = _Transfer(number, self.dirs[mark], t, length)
         if tail and not tail.isspace():
