@@ -263,11 +263,6 @@ HARD = [
 ]
 
 
-# a -x transfer of 120 bytes: its hex line comes in pieces when MAX_LINE is 257
-LONG = ("> 2024/05/01 10:00:00.000001  length=120 from=0 to=119\n " + bytes(range(120)).hex(" ") + "\n"
-        "> 2024/05/01 10:00:00.000001  length=1 from=120 to=120\n 31\n")
-
-
 
 # a -x transfer of 120 bytes: its hex line comes in pieces when MAX_LINE is 257
 LONG = ("> 2024/05/01 10:00:00.000001  length=120 from=0 to=119\n " + bytes(range(120)).hex(" ") + "\n"
