@@ -6,7 +6,8 @@ For each kind of traffic (``cell``, ``random``, ``anomalous``) and each file (RT
 of this process (a shared machine's load moves wall times more than CPU times). Run it with two checkouts'
 environments, one after the other, to compare readers.
 
-Run: ``python benchmarks/bench_readers.py [--exchanges 50000] [--repeat 7] [--keep DIR]``.
+Run: ``python benchmarks/bench_readers.py [--exchanges 50000] [--repeat 7] [--kinds ...] [--formats ...]
+[--keep DIR]``; the microseconds a chunk are the reciprocal of chunks/s.
 """
 
 from __future__ import annotations
@@ -46,20 +47,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--kinds", nargs="+", choices=traffic.KINDS, default=list(traffic.KINDS))
+    ap.add_argument("--formats", nargs="+", choices=list(SUFFIXES), default=list(SUFFIXES))
     ap.add_argument("--keep", type=Path, help="write the generated files here and keep them (reused)")
     args = ap.parse_args(argv)
     workdir = args.keep or Path(tempfile.mkdtemp(prefix="xac1-readers-"))
     workdir.mkdir(parents=True, exist_ok=True)
     try:
         print(f"{args.exchanges} exchanges a file, seed {args.seed}, best of {args.repeat} (CPU time)")
-        print(f"{'traffic':10} {'file':7} {'chunks':>9} {'chunks/s':>11}")
+        print(f"{'traffic':10} {'file':7} {'chunks':>9} {'chunks/s':>11} {'us/chunk':>9}")
         for kind in args.kinds:
-            for fmt, suffix in SUFFIXES.items():
+            for fmt in args.formats:
+                suffix = SUFFIXES[fmt]
                 path = workdir / f"{kind}-{args.exchanges}-seed{args.seed}{suffix}"
                 if not path.exists():
                     traffic.WRITERS[fmt](traffic.conversation(args.exchanges, args.seed, kind), path)
                 n, rate = chunks_per_second(path, fmt, args.repeat)
-                print(f"{kind:10} {fmt:7} {n:9,} {rate:11,.0f}", flush=True)
+                print(f"{kind:10} {fmt:7} {n:9,} {rate:11,.0f} {1e6 / rate:9.3f}", flush=True)
     finally:
         if args.keep is None:
             shutil.rmtree(workdir, ignore_errors=True)

@@ -263,11 +263,6 @@ HARD = [
 ]
 
 
-# a -x transfer of 120 bytes: its hex line comes in pieces when MAX_LINE is 257
-LONG = ("> 2024/05/01 10:00:00.000001  length=120 from=0 to=119\n " + bytes(range(120)).hex(" ") + "\n"
-        "> 2024/05/01 10:00:00.000001  length=1 from=120 to=120\n 31\n")
-
-
 
 # a -x transfer of 120 bytes: its hex line comes in pieces when MAX_LINE is 257
 LONG = ("> 2024/05/01 10:00:00.000001  length=120 from=0 to=119\n " + bytes(range(120)).hex(" ") + "\n"
@@ -415,30 +410,134 @@ def _clean(n: int, seed: int = 1) -> str:
 
 
 def test_memory_stays_bounded() -> None:
-    """The block buffer holds at most a block and a line; the hex rows remembered are bounded in number
-    and size, whatever the file (long lines, many distinct transfers)."""
-    text = _clean(200) + "x" * 300_000 + "\n" + "".join(
-        f"> 2024/05/01 11:00:00.000001  length=2 from={2 * i} to={2 * i + 1}\n {i >> 8:02x} {i & 255:02x}\n"
-        for i in range(socat_mod._KNOWN + 500))
+    """The block buffer holds at most a block and a line; the hex rows and lengths remembered are bounded
+    in number and size, whatever the file (long lines, many distinct transfers)."""
+    rows, count = [], 0
+    for i in range(socat_mod._KNOWN + 500):  # distinct rows, lengths from 2 to 41 (some on their own)
+        length = 2 + (i % 40 if i < socat_mod._KNOWN else i)
+        rows.append(f"> 2024/05/01 11:00:00.000001  length={length} from={count} to={count + length - 1}\n"
+                    f" {i >> 8:02x} {i & 255:02x}" + " 00" * (length - 2) + "\n")
+        count += length
+    text = _clean(200) + "x" * 300_000 + "\n" + "".join(rows)
     path = Path(_TMP.name) / "big.log"
     path.write_text(text, encoding="latin-1")
     largest, builders = [0], []
-    fill, init = socat_mod._Lines._fill, socat_mod._Transfers.__init__
+    regions, init = socat_mod._Blocks.regions, socat_mod._Transfers.__init__
 
-    def measured_fill(self: Any) -> bool:
-        more = fill(self)
-        largest[0] = max(largest[0], len(self.buf))
-        return more
+    def measured_regions(self: Any) -> Any:
+        for region in regions(self):
+            largest[0] = max(largest[0], len(region[0]))
+            yield region
 
     def kept_init(self: Any, *args: Any) -> None:
         init(self, *args)
         builders.append(self)
 
     with mock.patch.object(socat_mod, "BLOCK", 4096), \
-            mock.patch.object(socat_mod._Lines, "_fill", measured_fill), \
+            mock.patch.object(socat_mod._Blocks, "regions", measured_regions), \
             mock.patch.object(socat_mod._Transfers, "__init__", kept_init), Source(path, Report()) as src:
+        report = src.report
         chunks = list(socat_mod.read(src))
+    assert report.problems and all(p.startswith(f"{path}:401: ") for p in report.problems)  # the long line
     assert len(chunks) == 200 + socat_mod._KNOWN + 500
     assert 4096 < largest[0] <= 4096 + base_mod.MAX_LINE
     assert 0 < len(builders[0].known) <= socat_mod._KNOWN
     assert all(len(row) <= socat_mod._KNOWN_TEXT for row in builders[0].known)
+    assert 0 < len(builders[0].sizes) <= socat_mod._KNOWN
+
+
+# ---------------------------------------------------------------- the block matcher ----
+
+def test_a_header_cut_by_a_line_end_is_not_joined_to_the_next_line() -> None:
+    """A header whose line ends before ``length=`` is no header: that line and the next are each reported
+    at their own line, and every line after keeps its number (a version joined the two lines into one
+    header, and numbered every later line one too low)."""
+    text = ("> 2024/05/01 10:00:00.000001  length=5 from=0 to=4\n 30 52 56 0d 0a\n"
+            "> 2024/05/01 10:00:00.000002\n  length=1 from=5 to=5\n 30\n"
+            "> 2024/05/01 10:00:00.000003  length=3 from=6 to=8\n 30 31\n")
+    events, _, report = read_any_block(text, (socat_mod.BLOCK, 1, 7))
+    path = Path(_TMP.name) / "dump.log"
+    assert [e[2] for e in events] == [b"0RV\r\n0", b"01"]
+    assert report["problems"] == [
+        f"{path}:3: cannot read this dump line: '> 2024/05/01 10:00:00.000002'",
+        f"{path}:4: cannot read this dump line: '  length=1 from=5 to=5'",
+        f"{path}:1: transfer says length=5 but its dump holds 6 byte(s) (cut short before line 6)",
+        f"{path}:6: 1 byte(s) of the '>' side are missing before this transfer (from=6, the previous one "
+        f"ended at to=4)",
+        f"{path}:6: transfer says length=3 but its dump holds 2 byte(s) (cut short before line 7)"]
+
+
+def test_a_second_past_59_is_reported_in_any_minute() -> None:
+    """Second 60 to 99 is no time, whether its minute is new or was seen on the header before: reported
+    at its header, the bytes kept with the previous time (a version said so only of a minute's first
+    header and read a later one as the next minute's time)."""
+    text = ("> 2024/05/01 10:00:08.000001  length=1 from=0 to=0\n 30\n"
+            "> 2024/05/01 10:00:75.000001  length=1 from=1 to=1\n 31\n"
+            "> 2024/05/01 10:01:75.000001  length=1 from=2 to=2\n 32\n")
+    events, _, report = read_any_block(text, (socat_mod.BLOCK, 5))
+    path = Path(_TMP.name) / "dump.log"
+    first = _bits(wallclock("2024/05/01", "10:00:08.000001"))
+    assert [(e[0], e[2]) for e in events] == [(first, b"0"), (first, b"1"), (first, b"2")]
+    assert [p.split(": impossible")[0] for p in report["problems"]] == [f"{path}:3", f"{path}:5"]
+    assert all("second must be in 0..59" in p for p in report["problems"])
+
+
+@st.composite
+def _garbled(draw: st.DrawFn) -> tuple[str, list[tuple[str, bytes, float]], list[int]]:
+    """A clean ``-x`` log with lines of junk put between its transfers: (text, its transfers, the junk's
+    line numbers). Junk is any text that is no header, hex row, diagnostic, blank line or ``--``. (Right
+    after a header, a line that is no hex row is -v text: the transfer's bytes.)"""
+    date, count, second = "2024/05/01", {">": 0, "<": 0}, draw(st.integers(0, 80000))
+    lines: list[str] = []
+    want = []
+    for _ in range(draw(st.integers(1, 30))):
+        side = draw(st.sampled_from("><"))
+        data = draw(st.one_of(st.sampled_from(FRAMES[:6]), st.binary(min_size=1, max_size=40)))
+        second += draw(st.sampled_from([0, 0, 1, 59]))
+        clock = f"{second // 3600 % 24:02d}:{second // 60 % 60:02d}:{second % 60:02d}"
+        fraction = draw(st.sampled_from(["000001", "999999", "500000", "000123456"]))
+        lines.append(f"{side} {date} {clock}.{fraction}  length={len(data)} from={count[side]} "
+                     f"to={count[side] + len(data) - 1}")
+        lines.append(" " + data.hex(" "))
+        count[side] += len(data)
+        read_as = fraction[3:] if len(fraction) == 9 else fraction
+        want.append((side, data, wallclock(date, f"{clock}.{read_as}")))
+    junk = st.from_regex(r"[a-zA-Z#*][ -~]{0,70}", fullmatch=True)
+    spots = sorted(draw(st.lists(st.integers(0, len(lines) // 2), max_size=6)), reverse=True)
+    for at in spots:  # from the end, so that the earlier spots stay where they were drawn
+        lines.insert(2 * at, draw(junk))
+    numbers = [i + 1 for i, line in enumerate(lines) if line[:1] not in "<> "]
+    return "".join(line + "\n" for line in lines), want, numbers
+
+
+@settings(max_examples=60, deadline=None)
+@given(_garbled(), st.sampled_from(BLOCKS) | st.integers(1, 400))
+def test_junk_between_lines_is_reported_at_its_line_and_the_transfers_read_whole(
+        dump: tuple[str, list[tuple[str, bytes, float]], list[int]], block: int) -> None:
+    """Lines of junk between the transfers of a ``-x`` log are each reported once, at their own line, as
+    one line not read; every transfer still reads whole, its time wallclock's; the same at every block size
+    (block ends falling inside transfers and junk alike)."""
+    text, want, numbers = dump
+    events, end, report = read_any_block(text, (socat_mod.BLOCK, block))
+    path = Path(_TMP.name) / "dump.log"
+    assert [(e[1], e[2], e[0]) for e in events] == [
+        ("host" if side == ">" else "device", data, _bits(t)) for side, data, t in want]
+    assert [p.split(": ")[0] for p in report["problems"]] == [f"{path}:{n}" for n in numbers]
+    assert report["unread_lines"] == len(numbers) and report["unread_bytes"] == 0 and end[0] == "end"
+
+
+@settings(max_examples=40, deadline=None)
+@given(clean_dumps(), st.data())
+def test_line_ends_mixed_anyhow_read_the_same(dump: tuple[str, list[tuple[str, bytes, float]], bool],
+                                              more: st.DataObject) -> None:
+    """A clean -x / -x -v log whose lines end with LF or CR LF, mixed anyhow (the first lines deciding how
+    the block matcher reads line ends), gives the same transfers as with LF alone, and nothing reported."""
+    text, want, v = dump
+    lines = text.split("\n")
+    crlf = more.draw(st.lists(st.booleans(), min_size=len(lines), max_size=len(lines)))
+    mixed = "\n".join(line + "\r" if cr and i < len(lines) - 1 and not v else line
+                      for i, (line, cr) in enumerate(zip(lines, crlf, strict=True)))
+    events, end, report = read_any_block(mixed, (socat_mod.BLOCK, 61))
+    assert [(e[1], e[2], e[0]) for e in events] == [
+        ("host" if side == ">" else "device", data, _bits(t)) for side, data, t in want]
+    assert report["problems"] == [] and end[0] == "end"

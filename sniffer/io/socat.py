@@ -16,25 +16,30 @@ direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``
 socat appending to the same log starts again at ``from=0``, which is accepted. A header whose time is
 more than a second before the one before it is reported too (``timeline``: the clock was set back).
 
-One parser: the file is read in blocks of ``BLOCK`` characters (``_Lines``: never the whole file), cut
-into lines (numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number).
-Each line is classified (``tokenize``: what a line is) and acted on by the transfer builder
+One parser: the file is read in blocks of ``BLOCK`` characters (``_Blocks``: never the whole file),
+handed on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
+(numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number), every
+character accounted for: the lines that make up almost every dump, a header as socat writes it and the
+hex row after it, as one match with their fields; any other line as itself. The transfer builder
 (``_Transfers``: one chunk per transfer, handed on in bounded pieces; ``length=`` beyond 16 MiB is
-damage), whatever the dump's style and state. ``_Transfers.read`` takes the lines that make up almost
-every dump itself, before any other classification: a header and the hex row after it, matched at once
-(``_HEADER_ROW``; the match fails at once on any other line), then ``_header``'s checks (counters,
-length, time) done in place; a further hex row (a leading space). A hex row's bytes come from
-``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them), else
-from ``_HEX`` itself; short rows are remembered (a conversation repeats itself). Every other line, and
-any line while -v text is being read, goes through ``step``, which does the same for every kind. A
-header's time is its minute's start (``wallclock``, remembered) plus its seconds and fraction, computed
-as ``wallclock`` computes it. -v text is decoded a run of characters at a time.
+damage) takes the header-and-row matches, further hex rows and the ``--`` that ends a ``-x -v`` transfer
+itself (``read``): the counters checked by writing the two numbers it expects (``from=`` where the
+side's last transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and
+checked in full, ``_counters``, when they differ), the time computed as ``wallclock`` computes it (the
+minute's start remembered, plus the seconds and the fraction). A hex row's bytes come from
+``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them),
+else from ``_HEX`` itself; short rows and lengths are remembered (a conversation repeats itself). Every
+other line, any line while -v text is being read, and a header the match does not take (another
+spelling, a date that is none) go through ``step``: each line classified (``tokenize``: what a line is)
+and acted on the same way for every kind, whatever the dump's style and state. -v text is decoded a run
+of characters at a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Generator, Iterator
@@ -55,13 +60,9 @@ _HEADER: Final = re.compile(
     r"([<>]) (?:(\d{4}/\d\d/\d\d) (\d\d:\d\d:\d\d)(?:\.(\d+))?\s+)?"
     r"length=(\d{1,18}) from=(\d{1,18}) to=(\d{1,18})")
 _HEADER_LINE: Final = re.compile(_HEADER.pattern + r"(.*)", re.DOTALL)  # and what follows on the line
-# _HEADER with what follows on its line (CR included) and, when it starts with a space, the next line;
-# the date and the minute are taken as any characters (a quicker match) and checked by _MINUTE when
-# they change (in latin-1 text ``\\d`` is ``[0-9]``)
-_HEADER_ROW: Final = re.compile(
-    r"([<>]) (?:(.{10}) (.{5}):([0-9]{2})(?:\.([0-9]+))?\s+)?"
-    r"length=([0-9]{1,18}) from=([0-9]{1,18}) to=([0-9]{1,18})([^\n]*)\n(?:( [^\n]*)\n)?")
-_MINUTE: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d")
+_LONGEST_HEADER: Final = 110  # characters of the longest header line the block matcher takes (CR too)
+_SECONDS: Final = {f"{ss:02d}": ss for ss in range(60)}  # a clean header's seconds
+_MINUTE: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d")  # a clean header's date and minute
 _POWERS: Final = tuple(10 ** n for n in range(13))
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
@@ -74,7 +75,8 @@ _KNOWN_TEXT: Final = 160  # characters of the longest row remembered
 _TEXT: Final = "text"  # a transfer's mode: -v text (None: not known yet; "hex": hex rows)
 _HEXMODE: Final = "hex"
 
-BLOCK = 1 << 16  # characters read at once (a test makes it tiny so that block ends fall everywhere)
+BLOCK = 1 << 14  # characters read at once: a region, and the list findall makes of it, stay small (a
+# test makes it tiny so that block ends fall everywhere)
 
 
 def sniff(head: list[str]) -> int:
@@ -120,74 +122,56 @@ def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
     return (HEXROW, hm) if hm else (OTHER, None)
 
 
+@functools.lru_cache(maxsize=8)
+def _block_matcher(max_line: int, crlf: bool) -> re.Pattern[str]:
+    """What ``findall`` cuts a region of whole lines into, each line accounted for (no character skipped):
+    a header as socat writes it (``[0-5]`` seconds, six or nine digits of fraction, two spaces; a CR after
+    it when ``crlf``) with the line after it when that starts with a space (a hex row, CR and LF excluded);
+    any other line (up to ``max_line`` characters with its line end); or ``max_line`` characters of a
+    longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM`` (its digits checked by ``_MINUTE`` when it
+    changes), seconds, fraction (with its point), length, from, to, row; the other line; the piece. A line
+    limit shorter than a header turns the first kind off. (A CR that may end a line costs a tenth of the
+    matching: a file whose first lines end with LF alone is matched without; any line ending CR LF in it
+    is then another line, read by ``step``.)"""
+    header = (r"([<>]) (.{16}):([0-5][0-9])(\.[0-9]{6}|\.[0-9]{9})  "
+              r"length=([0-9]{1,18}) from=([0-9]{1,18}) to=([0-9]{1,18})\r?\n"
+              rf"(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
+    if not crlf:
+        header = header.replace(r"\r?", "")
+    return re.compile(("" if max_line > _LONGEST_HEADER else "(?!)") + header
+                      + rf"|([^\n]{{0,{max_line - 1}}})\n|([^\n]{{{max_line}}})")
+
+
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    builder = _Transfers(src, Sides(FORMAT, host_is, (">", "<")))
-    lines = _Lines(src)
-    yield from builder.read(lines)
-    yield from builder.end(lines.number)
+    return _Transfers(src, Sides(FORMAT, host_is, (">", "<"))).read(_Blocks(src))
 
 
-class _Lines:
-    """The file read in blocks of ``BLOCK`` characters (latin-1) and cut into the very lines
-    ``Source.lines`` gives: numbered, line end stripped, a line longer than ``MAX_LINE`` in pieces of the
-    same number. ``buf[pos:]`` is what is not read yet; the fast path reads it directly."""
+class _Blocks:
+    """The file read in blocks of ``BLOCK`` characters (latin-1), handed on as regions of whole lines
+    (never the whole file): ``regions`` gives ``(text, start, end)``, ``text[start:end]`` ending with a
+    line end, or made of ``MAX_LINE`` pieces of a line longer than that. What follows the last line end
+    of the file is ``tail``, once the regions are all read."""
 
     def __init__(self, src: Source) -> None:
         self.src = src
-        self.buf = ""
-        self.pos = 0
-        self.eof = False
-        self.number = 0  # of the last line (piece) read
-        self.continued = False  # the last piece read had no line end: the next continues its line
-        self.max_line = _base.MAX_LINE
+        self.tail = ""
 
-    def _fill(self) -> bool:
-        """Read another block after what is left; False at the end of the file."""
-        data = self.src.read(BLOCK)
-        if not data:
-            self.eof = True
-            return False
-        self.buf = self.buf[self.pos:] + data.decode("latin-1")
-        self.pos = 0
-        return True
-
-    def ahead(self) -> None:
-        """Read another block when less than a long line is left (the fast path reads whole lines)."""
-        if not self.eof and len(self.buf) - self.pos < self.max_line:
-            self._fill()
-
-    def next(self) -> tuple[int, str] | None:
-        """(line number, text) of the next line or piece of one, None at the end of the file."""
-        buf, pos = self.buf, self.pos
-        nl = buf.find("\n", pos, pos + self.max_line)
-        if nl < 0 or self.continued:
-            return self._piece()
-        self.pos = nl + 1
-        self.number += 1  # src.unterminated is None already: the last piece read ended its line
-        return self.number, buf[pos:nl].rstrip("\r")
-
-    def _piece(self) -> tuple[int, str] | None:
-        """``next`` for a line that is not whole in the block or continues a piece."""
+    def regions(self) -> Iterator[tuple[str, int, int]]:
+        read, max_line = self.src.read, _base.MAX_LINE
+        buf, pos = "", 0
         while True:
-            buf, pos = self.buf, self.pos
-            limit = pos + self.max_line
-            nl = buf.find("\n", pos, limit)
-            if nl >= 0:
-                end = nl + 1
-            elif len(buf) >= limit:
-                end = limit
-            elif not self.eof and self._fill():
-                continue
-            elif pos < len(buf):
-                end = len(buf)
-            else:
-                return None
-            self.pos = end
-            if not self.continued:
-                self.number += 1
-            self.continued = nl < 0
-            self.src.unterminated = self.number if self.continued else None
-            return self.number, buf[pos:end].rstrip("\r\n")
+            cut = buf.rfind("\n", pos) + 1
+            if cut <= pos:  # no whole line left: pieces of a long one, or another block
+                if len(buf) - pos >= max_line:
+                    cut = pos + (len(buf) - pos) // max_line * max_line
+                elif data := read(BLOCK):
+                    buf, pos = buf[pos:] + data.decode("latin-1"), 0
+                    continue
+                else:
+                    self.tail = buf[pos:]
+                    return
+            yield buf, pos, cut
+            pos = cut
 
 
 class _Transfer:
@@ -241,130 +225,139 @@ class _Transfers:
         self.cur: _Transfer | None = None  # the transfer being read
         self.text_bytes = 0
         self.following: dict[str, int] = {}  # side name -> the from= its next transfer should have
-        # the last header's date and minute (HH:MM), and the minute's start (``wallclock``): seconds in a
-        # minute are linear (time zones change their offset on whole minutes)
-        self.minute: tuple[str, str, float] = ("", "", 0.0)
+        # the last header's ``YYYY/MM/DD HH:MM`` and its start (``wallclock``): seconds in a minute are
+        # linear (time zones change their offset on whole minutes)
+        self.minute: tuple[str, float] = ("", 0.0)
         self.known: dict[str, bytes] = {}  # hex rows read (text -> bytes)
+        self.sizes: dict[str, int] = {}  # length= read (text -> number)
 
-    def read(self, lines: _Lines) -> Iterator[Chunk]:
-        """Every line of the file: the common ones taken here, the others by ``step`` (see the module
-        docstring). A header line and the line after it, when that starts with a space (a hex row), are
-        matched at once (``_HEADER_ROW``). The transfer they make is
-        held in locals (its bytes, not copied) until the next line shows whether more rows follow; it
-        becomes ``cur`` before anything else reads the state. The position in the file, the line number
-        and the last time are locals too, handed to ``lines`` and the clocks before anything else."""
-        header_row, known, max_line, following = _HEADER_ROW.match, self.known, lines.max_line, self.following
-        dirs, timeline, tol, powers = self.dirs, self.timeline, TOLERANCE_S, _POWERS
-        new = Chunk
-        day, minute, base = self.minute
-        held: bytes | None = None  # the bytes of the transfer held (None: none is)
-        h_line, h_dir, h_t, h_length = 0, dirs[">"], None, 0
-        buf, pos, number, continued = lines.buf, lines.pos, lines.number, lines.continued
+    def read(self, blocks: _Blocks) -> Iterator[Chunk]:
+        """Every line of the file, a region of whole lines at a time: ``findall`` cuts it into lines, a
+        header and its hex row as one (``_block_matcher``); those, a further hex row and the ``--`` after
+        a transfer held whole are taken here; every other line, and any line while -v text is being read
+        or after a piece of a long line, goes to ``step`` (see the module docstring), then the whole
+        file's last line if it has no line end. A header and its row that hold the transfer whole make
+        its chunk at once, held in a local until the next line shows that no more rows follow (it becomes
+        ``cur`` before anything else reads the state). The line number and the last time are locals too,
+        handed to the clocks before anything else."""
+        known, sizes, following, dirs = self.known, self.sizes, self.following, self.dirs
+        timeline = self.timeline
+        tol, max_transfer, new, seconds = TOLERANCE_S, _MAX_TRANSFER, Chunk, _SECONDS
+        nine = self.clock.fraction
+        crlf = b"\r\n" in self.src.head()  # (nothing is read yet)
+        findall, minute_ok = _block_matcher(_base.MAX_LINE, crlf).findall, _MINUTE.fullmatch
+        minute, base = self.minute
+        held: Chunk | None = None  # a whole transfer read here, handed on at the next header
+        h_line = 0  # its header's line
+        number, continued = 0, False  # the last line's number; whether its last piece had no line end
         last_t = timeline.last  # the time of the last header read here (times.last too, when it was one)
-        while True:
-            piece: tuple[int, str] | None = None
-            m = header_row(buf, pos)  # the most common line: fails at once on any other
-            if m is None:
-                first = buf[pos:pos + 1]
-            else:
-                first = ""
-                cur = self.cur
-                if ((after := m.end()) - pos < max_line or m.end(9) - pos < max_line) and not continued \
-                        and (held is not None or cur is None or cur.mode is not _TEXT):
-                    mark, date, hhmm, ss, frac, length_s, start_s, end_s, tail, row = m.groups()
-                    if date is not None and (hhmm != minute or date != day) and \
-                            _MINUTE.fullmatch(f"{date} {hhmm}") is None:
-                        m = None  # not a header as _HEADER reads one: step says what it is
-                else:
-                    m = None
-                if m is not None:
+        t: float | None
+        for region in blocks.regions():
+            for mark, stamp, ss, frac, length_s, from_s, to_s, row, line, piece in findall(*region):
+                if mark and not continued and (held is not None or (cur := self.cur) is None or
+                                               cur.mode is not _TEXT) and \
+                        (stamp == minute or minute_ok(stamp)):
                     number += 1
-                    if after - pos < max_line or row is not None and len(row) < max_line:
-                        pos = after  # (both lines shorter than MAX_LINE: pieces are read by step)
-                    else:
-                        row = None
-                        pos = m.end(9) + 1
                     if held is not None:  # the transfer before ends
-                        if len(held) == h_length:
-                            yield new(h_t, h_dir, held)
-                        else:
-                            self._hold(h_line, h_dir, h_t, h_length, held)
-                            if (chunk := self.finish(number)) is not None:
-                                yield chunk
+                        yield held
                         held = None
-                    elif self.cur is not None and (chunk := self.finish(number)) is not None:
+                    elif cur is not None and (chunk := self.finish(number)) is not None:
                         yield chunk
-                    length, start, end = int(length_s), int(start_s), int(end_s)
-                    if end - start + 1 != length or length > _MAX_TRANSFER or \
-                            mark in following and start != following[mark] and start != 0:
-                        length = self._damaged_header(number, mark, length, start, end)
+                    length = sizes.get(length_s)
+                    if length is None:
+                        length = self._size(length_s)
+                    first = following.get(mark, -1)  # from= as expected and to= as length= says: said
+                    if from_s == str(first) and to_s == str(first + length - 1) and length <= max_transfer:
+                        following[mark] = first + length  # with two numbers written, not three read
                     else:
-                        following[mark] = start + length
-                    t = None
-                    if date is not None:
-                        if frac is None or len(frac) > 6 or hhmm != minute or date != day:
-                            self._clocks(last_t)
-                            t = self._time(number, date, f"{hhmm}:{ss}", frac)
-                            day, minute, base = self.minute
-                            last_t = timeline.last
-                        else:  # as wallclock computes it: the whole second (in range), the fraction
-                            t = base + int(ss) + int(frac) / powers[len(frac)]
-                            if t + tol < last_t:
-                                timeline.last = last_t
-                                timeline.check(t, self.src.where(number))
-                            last_t = t
-                    if tail and not tail.isspace():
-                        self.report.problem(self.src.where(number), f"unexpected text after the header: "
-                                                                    f"{shown(tail.strip())}")
-                    if row is not None:
+                        length = self._counters(number, mark, length, int(from_s), int(to_s))
+                    if stamp == minute:  # the whole second plus the fraction (wallclock's float: both
+                        # are the nearest float to the same number)
+                        t = base + seconds[ss] + float(frac if len(frac) == 7 else "." + nine(frac[1:]))
+                        if t + tol < last_t:
+                            timeline.last = last_t
+                            timeline.check(t, self.src.where(number))
+                        last_t = t
+                    else:
+                        self._clocks(last_t)
+                        t = self._time(number, stamp[:10], f"{stamp[11:]}:{ss}", frac[1:])
+                        minute, base = self.minute
+                        last_t = timeline.last
+                    if row:
                         number += 1
-                        if row[-1:] == "\r":
-                            row = row.rstrip("\r")
                         data = known.get(row)
                         if data is None:
                             data = self._hex_row(row)
                         if data:
-                            held, h_line, h_dir, h_t, h_length = data, number - 1, dirs[mark], t, length
+                            if len(data) == length:
+                                held, h_line = new(t, dirs[mark], data), number - 1
+                                continue
+                            cur = self.cur = _Transfer(number - 1, dirs[mark], t, length)
+                            cur.mode = _HEXMODE
+                            cur.data += data
                             continue
-                        piece = number, row  # no hex row: step reads it
-                    self.cur = _Transfer(number - (row is not None), dirs[mark], t, length)
-                    if piece is None:
+                        self.cur = _Transfer(number - 1, dirs[mark], t, length)
+                        texts = [row]  # no hex row: step reads it
+                    else:
+                        self.cur = _Transfer(number, dirs[mark], t, length)
                         continue
-            if held is not None:  # another line: the transfer held becomes the state step reads
-                self._hold(h_line, h_dir, h_t, h_length, held)
-                held = None
-            cur = self.cur
-            if piece is None and first == " " and cur is not None and cur.mode is not _TEXT and not continued:
-                nl = buf.find("\n", pos, pos + max_line)
-                if nl >= 0:
-                    text = buf[pos:nl]
-                    if text[-1:] == "\r":
-                        text = text.rstrip("\r")
+                elif held is not None and line[:2] == "--" and not continued and line.strip() == "--":
+                    number += 1  # the end of a -x -v transfer held whole (as step's END would end it)
+                    yield held
+                    held = None
+                    continue
+                elif line[:1] == " " and not continued and (held is not None or (cur := self.cur) is not None
+                                                            and cur.mode is not _TEXT):
+                    number += 1  # a further hex row of the transfer
+                    text = line.rstrip("\r")
                     data = known.get(text)
                     if data is None:
                         data = self._hex_row(text)
-                    pos, number = nl + 1, number + 1
+                    if held is not None:
+                        self._hold(h_line, held)
+                        held = None
+                    cur = self.cur
+                    assert cur is not None
                     if data:
                         cur.mode = _HEXMODE
                         cur.data += data
                         if len(cur.data) >= _SPILL and (chunk := cur.spill()) is not None:
                             yield chunk
                         continue
-                    piece = number, text
-            # anything else: lines and the clocks as read so far, then step
-            lines.pos, lines.number = pos, number
-            self._clocks(last_t)
-            if piece is None:
-                piece = lines.next()
-                if piece is None:
-                    return
-            line_number, line = piece
-            rest: str | None = line
+                    texts = [text]
+                else:  # anything else: a line (or its piece) for step
+                    if not continued:
+                        number += 1
+                    continued = piece != ""
+                    self.src.unterminated = number if continued else None
+                    if mark:  # a header and its row (-v text being read, a line's last piece, another date)
+                        texts = [f"{mark} {stamp}:{ss}{frac}  length={length_s} from={from_s} to={to_s}"]
+                        if row:
+                            texts.append(row)
+                    else:
+                        texts = [piece.rstrip("\r") if piece else line.rstrip("\r")]
+                if held is not None:  # the transfer held becomes the state step reads
+                    self._hold(h_line, held)
+                    held = None
+                self._clocks(last_t)
+                for i, text in enumerate(texts):
+                    rest: str | None = text
+                    while rest is not None:
+                        rest = yield from self.step(number + i, rest)
+                number += len(texts) - 1
+                minute, base = self.minute
+                last_t = timeline.last
+        if held is not None:
+            self._hold(h_line, held)
+        self._clocks(last_t)
+        if blocks.tail:  # the last line has no line end
+            if not continued:
+                number += 1
+            self.src.unterminated = number
+            rest = blocks.tail.rstrip("\r")
             while rest is not None:
-                rest = yield from self.step(line_number, rest)
-            day, minute, base = self.minute
-            buf, pos, number, continued = lines.buf, lines.pos, lines.number, lines.continued
-            last_t = timeline.last
+                rest = yield from self.step(number, rest)
+        yield from self.end(number)
 
     def _clocks(self, last: float) -> None:
         """The last good time (``read`` holds it), handed to the clocks (the same time for both: none yet
@@ -372,11 +365,28 @@ class _Transfers:
         self.timeline.last = last
         self.times.last = None if last == -math.inf else last
 
-    def _hold(self, line: int, d: Direction, t: float | None, length: int, data: bytes) -> None:
-        """A transfer read by ``read`` (a header and a hex row) becomes the transfer being read."""
-        cur = self.cur = _Transfer(line, d, t, length)
+    def _hold(self, line: int, held: Chunk) -> None:
+        """A whole transfer read by ``read`` (a header and a hex row) becomes the transfer being read."""
+        cur = self.cur = _Transfer(line, held.dir, held.t, len(held.data))
         cur.mode = _HEXMODE
-        cur.data += data
+        cur.data += held.data
+
+    def _size(self, text: str) -> int:
+        """``length=``'s number (remembered: a conversation's transfers have few lengths)."""
+        if len(self.sizes) >= _KNOWN:
+            self.sizes.clear()
+        size = self.sizes[text] = int(text)
+        return size
+
+    def _counters(self, number: int, mark: str, length: int, start: int, end: int) -> int:
+        """A header's counters and length checked (by ``step``, or by ``read`` when it found them other than
+        it expected: the first transfer of a side, a restart, a leading zero, damage); the length read."""
+        following = self.following
+        if end - start + 1 != length or length > _MAX_TRANSFER or \
+                mark in following and start != following[mark] and start != 0:
+            return self._damaged_header(number, mark, length, start, end)
+        following[mark] = start + length
+        return length
 
     def _damaged_header(self, number: int, mark: str, length: int, start: int, end: int) -> int:
         """A header whose counters or length are wrong: reported; the length read (at most 16 MiB)."""
@@ -391,7 +401,7 @@ class _Transfers:
     def _hex_row(self, text: str) -> bytes:
         """The bytes of a hex row as ``_HEX`` reads them (empty: not a hex row); short rows remembered."""
         try:
-            data = bytes.fromhex(text[1:])
+            data = bytes.fromhex(text)  # (its leading space skipped as any space between bytes)
         except ValueError:
             data = b""
         if not data or data.hex(" ") != text[1:]:  # not plain: as _HEX reads it, if it does
@@ -474,13 +484,7 @@ class _Transfers:
     def _header(self, number: int, m: re.Match[str]) -> None:
         """A transfer's header: its counters, length and time checked; it becomes the transfer read."""
         mark, date, clock, frac, length_s, start_s, end_s, tail = m.groups()
-        length, start, end = int(length_s), int(start_s), int(end_s)
-        following = self.following
-        if end - start + 1 != length or length > _MAX_TRANSFER or \
-                mark in following and start != following[mark] and start != 0:
-            length = self._damaged_header(number, mark, length, start, end)
-        else:
-            following[mark] = start + length
+        length = self._counters(number, mark, int(length_s), int(start_s), int(end_s))
         t = None if date is None else self._time(number, date, clock, frac)
         self.cur = _Transfer(number, self.dirs[mark], t, length)
         if tail and not tail.isspace():
@@ -490,17 +494,17 @@ class _Transfers:
     def _time(self, number: int, date: str, clock: str, frac: str | None) -> float | None:
         """A header's time (``clock``: ``HH:MM:SS``): its whole second plus the fraction, as ``wallclock``
         computes it, the 9-digit quirk read (``_Clock``); a time that cannot be one, or that runs
-        backwards, is reported (the previous time is kept for the former). The minute's start is
-        remembered when all its seconds are in range (``read`` then computes the next ones itself)."""
+        backwards, is reported (the previous time is kept for the former). The minute's seconds are
+        remembered when all of them are in range (``read`` then computes the next times itself)."""
         times = self.times
         frac = self.clock.fraction(frac or "")
-        hhmm, ss = clock[:5], int(clock[6:])
-        day, minute, base = self.minute
-        if date != day or hhmm != minute or ss >= 60:
+        minute, base = self.minute
+        ss = int(clock[6:])
+        if f"{date} {clock[:5]}" != minute or ss >= 60:
             try:
                 if ss >= 60:
                     raise ValueError(clock)
-                base = wallclock(date, f"{hhmm}:00")
+                base = wallclock(date, f"{clock[:5]}:00")
             except ValueError:  # said as wallclock says it of the whole time
                 try:
                     wallclock(date, f"{clock}.{frac}" if frac else clock)
@@ -509,7 +513,7 @@ class _Transfers:
                                                                 f"previous time")
                 return times.last
             in_range = MIN_TIME <= base < MAX_TIME - 61
-            self.minute = (date, hhmm, base) if in_range else ("", "", 0.0)
+            self.minute = (f"{date} {clock[:5]}", base) if in_range else ("", 0.0)
         if frac:
             digits = frac[:12]
             t = base + ss + int(digits) / _POWERS[len(digits)]
