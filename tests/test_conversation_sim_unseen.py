@@ -177,3 +177,31 @@ def test_a_new_alarm_after_the_release_is_the_latched_one_not_the_cleared_one():
     answers = [v.raw for v in line.verdicts if v.kind == "device-frame"]
     assert answers[-2:] == [b"0%%01\r\n", b"0%%01\r\n"]
     assert line.device_side() == []
+
+
+def test_a_lower_case_command_refused_after_the_release_is_a_new_alarm_not_the_cleared_one():
+    """Alarm 01 latched; the stop pressed; 0%C during it clears 01 (vendor §6); the stop released; then
+    ``0rv``: the simulator refuses lower case with alarm 01 of its own (silent item 2), so that 01 is a
+    new alarm, never the cleared one coming back (no latch-broken). The same 01 answering a plain 0RV is
+    latch-broken. Found by the CleanSimulator rule machine."""
+    line = Line(SimConfig(time_scale=0))
+    line.send(b"0RP3\n")
+    line.stop(True)
+    line.send(fr.AlarmReset().to_bytes())
+    line.stop(False)
+    line.send(b"0rv\r\n")
+    answers = [v.raw for v in line.verdicts if v.kind == "device-frame"]
+    assert answers[-1] == b"0%%01\r\n"
+    assert line.device_side() == []
+
+    def judged(command: bytes) -> list[str]:
+        c = Conversation()
+        out = []
+        script = [(b"0RP3\n", b"0%%01\r\n"), (b"0%C\r\n", b"0%%0E\r\n"), (command, b"0%%01\r\n")]
+        for k, (cmd, ans) in enumerate(script):
+            t = k * 0.1
+            out += c.host_frame(cmd, t, t) + c.device_frame(ans, t + 0.002, t + 0.002)
+        return [code for v in out for code, side in zip(v.codes, v.sides, strict=True) if side == "device"]
+
+    assert judged(b"0rv\r\n") == []
+    assert judged(b"0RV\r\n") == ["latch-broken"]

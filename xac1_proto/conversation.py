@@ -251,7 +251,8 @@ def _v(code: spec.ViolationCode, sentence: str, where: str = _BEHAVIOUR) -> Viol
 
 
 # well-formed commands that raise no alarm of their own (our reading of vendor §6 and §7): an alarm
-# answer to one is a latched alarm, never a new one
+# answer to one sent without any deviation is a latched alarm, never a new one (one with a notice may be
+# refused: a device may take lower case for an error, silent item 2)
 _RAISES_NO_ALARM: Final = frozenset({"0RV", "0RS", "0RC", "0WS", "0CM"})
 
 # kinds of host lines in the queue
@@ -262,13 +263,16 @@ _DISCARD: Final = "discard"  # sent during a move: discarded by the device (sile
 
 class _Line:
     """A host line waiting for its answer. ``overlapped``: sent while another line waited (the host's
-    fault, not owed an answer); ``deadline``: when its answer window closes (None without time)."""
+    fault, not owed an answer); ``deadline``: when its answer window closes (None without time);
+    ``plain``: read with no deviation at all, not even a notice (a device may refuse a lower-case
+    command with an alarm of its own: silent item 2)."""
 
-    __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move")
+    __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
+                 "plain")
 
     def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  deadline: float | None, waited_s: float, overlapped: bool = False,
-                 is_move: bool = False) -> None:
+                 is_move: bool = False, plain: bool = False) -> None:
         self.i = i
         self.kind = kind
         self.header = header
@@ -278,6 +282,7 @@ class _Line:
         self.waited_s = waited_s
         self.overlapped = overlapped
         self.is_move = is_move
+        self.plain = plain
 
     @property
     def owed(self) -> bool:
@@ -407,7 +412,7 @@ class Conversation:
         if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
             found += self._host_duties(header, error)
         line = self._enqueue(i, _ERROR if error else _COMMAND, header, None if error else frame,
-                             t_last, found, window)
+                             t_last, found, window, not violations)
         if line.is_move and self.knowledge.latched.value is None and self._motion is None \
                 and line.kind == _COMMAND and not line.overlapped:
             self._motion = line
@@ -560,7 +565,7 @@ class Conversation:
         return self.tick(t, t if answer else self._answer_since)
 
     def _enqueue(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
-                 found: list[Violation], window: float | None = None) -> _Line:
+                 found: list[Violation], window: float | None = None, plain: bool = False) -> _Line:
         """Queue a host line, judging when it was sent (docs/protocol.md "Framing": strict request/answer)."""
         overlapped = False
         what = header or "this line"
@@ -585,7 +590,7 @@ class Conversation:
         else:
             waited = self.no_answer_timeout
         line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + waited, waited,
-                     overlapped, is_move)
+                     overlapped, is_move, plain)
         self._queue.append(line)
         return line
 
@@ -743,7 +748,7 @@ class Conversation:
             found.append(_v("latch-broken", f"the alarm reset {line.name()} was answered with alarm "
                             f"{code:02X}: 0%C clears every alarm but emergency stop (0E) and answers 0%C00"))
         elif code == k.stop_cleared.value and code != spec.ALARM_ESTOP and line is not None \
-                and line.kind == _COMMAND and line.header in _RAISES_NO_ALARM:
+                and line.kind == _COMMAND and line.plain and line.header in _RAISES_NO_ALARM:
             found.append(_v("latch-broken", f"alarm {code:02X} answers {line.name()} after the emergency "
                             f"stop, but the alarm reset during the stop cleared it: 0%C clears every alarm "
                             f"but emergency stop (0E)"))
