@@ -291,6 +291,26 @@ def test_latency_stats_match_exact_statistics_to_the_microsecond(values):
     assert got["median"] == round(statistics.median(us) / 1000, 3)
 
 
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True) | st.floats(0, 30), max_size=60),
+       st.lists(st.integers(1, 20), max_size=10))
+def test_latency_stats_in_batches_count_exactly_the_sane_latencies(values, cuts):
+    """``LatencyStats.extend`` (the tally adds a batch at a time) counts the same as adding one latency at
+    a time: a damaged one (NaN, infinite, absurd) anywhere in a batch is left out, alone."""
+    from sniffer.records import LatencyStats
+
+    one, batched = LatencyStats(), LatencyStats()
+    for v in values:
+        one.add(v)
+    at = 0
+    for n in [*cuts, len(values)]:
+        batched.extend(values[at:at + n])
+        at += n
+    sane = [v for v in values if -1e6 <= v <= 1e6]
+    assert one.n == batched.n == len(sane)
+    if sane:
+        assert one.stats_ms() == batched.stats_ms()
+
+
 # ---- regression tests of issue 12, each named after the rule ----
 
 def test_pairing_resyncs_after_a_device_silent_to_malformed_commands():
