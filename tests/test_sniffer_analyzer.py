@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -406,3 +407,15 @@ def test_close_of_a_counting_analyzer_counts_its_verdicts():
     assert [r.type for r in counting.close(5.0)] == [r.type for r in feeding.close(5.0)] == ["timeout"]
     assert counting.summary() == feeding.summary()
     assert counting.summary()["violations"] == {"no-answer": 1}
+
+
+@pytest.mark.parametrize("data", [b"0RV\r\n", b"0R", b""])
+def test_a_chunk_of_no_known_direction_is_a_clear_error(data):
+    """A chunk whose direction is neither ``host`` nor ``device`` is a ``ValueError`` naming it, whether
+    its bytes are one whole frame (the usual chunk), part of one or none; the chunks before it are
+    judged and counted."""
+    analyzer = Analyzer()
+    good = Chunk(1.0, "host", b"0RV\r\n")
+    with pytest.raises(ValueError, match="'sideways'"):
+        analyzer.feed_many(iter([good, Chunk(1.1, "sideways", data)]), [])  # type: ignore[arg-type]
+    assert analyzer.summary()["commands"] == {"0RV": 1}
