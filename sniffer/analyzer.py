@@ -217,7 +217,8 @@ class Analyzer:
         if not judged:
             return
         self._judged, self._notes = [], {}
-        self.tally.count(judged, sum(1 for errors, _ in notes.values() if errors))
+        self.tally.count(judged, sum(1 for k, (errors, _) in notes.items()  # a missed answer has no bytes
+                                     if errors and judged[k].kind != "no-answer"))
         if out is None:
             return
         if not notes:

@@ -419,3 +419,17 @@ def test_a_chunk_of_no_known_direction_is_a_clear_error(data):
     with pytest.raises(ValueError, match="'sideways'"):
         analyzer.feed_many(iter([good, Chunk(1.1, "sideways", data)]), [])  # type: ignore[arg-type]
     assert analyzer.summary()["commands"] == {"0RV": 1}
+
+
+def test_a_line_error_is_counted_once_for_an_answer_that_shows_earlier_lines_unanswered():
+    """A device frame with a UART error on its bytes that answers the last of three waiting commands also
+    gives the first its ``no-answer`` verdict; the summary counts one record with a line error (a missed
+    answer has no bytes), whether the analyzer makes records or only counts. Found by hypothesis."""
+    chunks = [Chunk(0.001 * k, H, line) for k, line in enumerate((b"0RV\r\n", b"0RS\r\n", b"0RP3\r\n"))]
+    chunks.append(Chunk(0.01, D, b"0RP39302012345\r\n", "UART framing error"))
+    counting = Analyzer()
+    counting.feed_many(iter(chunks), None)
+    recs = analyze(chunks)
+    assert [r.type for r in recs].count("timeout") == 1
+    assert sum(1 for r in recs if r.type != "timeout" and r.line_errors) == 1
+    assert counting.summary()["line_errors"] == 1
