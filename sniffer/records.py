@@ -11,7 +11,6 @@ builds them and the views print them.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from collections import Counter, defaultdict
 from collections.abc import Iterable
@@ -20,20 +19,15 @@ from typing import Any, NamedTuple, Protocol
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
 
-_FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> its field names (Frame.fields' order)
 
-
-def field_names(cls: type) -> tuple[str, ...]:
-    """A frame class's field names in ``Frame.fields``' order, looked up once."""
-    names = _FIELD_NAMES.get(cls)
-    if names is None:
-        names = _FIELD_NAMES[cls] = tuple(f.name for f in dataclasses.fields(cls))
-    return names
+def field_names(cls: type[Frame]) -> tuple[str, ...]:
+    """A frame class's field names in ``Frame.fields``' order."""
+    return cls.field_names()
 
 
 def frame_fields(frame: Frame) -> dict[str, Any]:
-    """``frame.fields()``, the class's field names looked up once."""
-    return {name: getattr(frame, name) for name in field_names(type(frame))}
+    """``frame.fields()``."""
+    return frame.fields()
 
 
 def _round_t(t: float | None) -> float | None:

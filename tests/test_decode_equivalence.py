@@ -9,7 +9,6 @@ Optimized pieces (issue 14) and their references below:
 - ``FrameRecord.fields``: field names looked up once a frame class (was ``Frame.fields()``);
 - ``sniffer.io.base.wallclock``: the whole local second cached (socat headers);
 - ``codec.read_frame``: the last distinct lines' readings remembered (frames are immutable);
-- ``conversation._fields``: ``Frame.fields()`` with the names looked up once a class;
 - ``TextView``: a line is built as styled pieces and, without colour, written as their plain text, in
   batches offline (was rich markup, parsed and printed by the console line by line); ``show_raw`` is one
   ``str.translate``, ``show_time`` formats the fields (was ``strftime``);
@@ -245,7 +244,6 @@ def reference() -> Iterator[None]:
         stack.enter_context(mock.patch.object(FrameRecord, "fields", property(_reference_record_fields)))
         stack.enter_context(mock.patch.object(codec_mod, "read_frame", _reference_read_frame))
         stack.enter_context(mock.patch.object(conversation_mod, "read_frame", _reference_read_frame))
-        stack.enter_context(mock.patch.object(conversation_mod, "_fields", lambda frame: frame.fields()))
         stack.enter_context(mock.patch.object(socat_mod, "wallclock", _reference_wallclock))
         stack.enter_context(mock.patch.object(TextView, "write", _reference_text_write))
         stack.enter_context(mock.patch.object(frames_mod.Frame, "__str__", frames_mod.describe))

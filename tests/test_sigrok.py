@@ -4,7 +4,6 @@ install`` into temporary folders. tests/test_sigrok_cli.py runs the real sigrok-
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
 import sys
 import types
@@ -105,7 +104,7 @@ frame_bytes = st.one_of(
 
 def _original(raw: bytes, role: str) -> tuple[str | None, dict | None, list[tuple[str, int | None]]]:
     frame, found = codec.diagnose(raw, role)
-    fields = None if frame is None else {f.name: getattr(frame, f.name) for f in dataclasses.fields(frame)}
+    fields = None if frame is None else frame.fields()
     header = frame.header if frame is not None else None
     return header, fields, [(v.code, v.offset) for v in found]
 

@@ -211,17 +211,6 @@ class Verdict(NamedTuple):
 _verdict: Final = Verdict._make
 
 
-_FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # frame class -> field names in wire order
-
-
-def _fields(frame: Frame) -> dict[str, object]:
-    """``frame.fields()``, the class's field names looked up once."""
-    names = _FIELD_NAMES.get(type(frame))
-    if names is None:
-        names = _FIELD_NAMES[type(frame)] = tuple(frame.fields())
-    return {name: getattr(frame, name) for name in names}
-
-
 def _values_getter(names: tuple[str, ...]) -> Callable[[Frame], tuple[object, ...]]:
     if not names:
         return lambda frame: ()
@@ -831,7 +820,7 @@ class Conversation:
         values = _ECHOED.get(header)
         if values is not None:
             if values(frame) != values(cmd):
-                mine, theirs = _fields(frame), _fields(cmd)
+                mine, theirs = frame.fields(), cmd.fields()
                 diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
                                  for k, v in mine.items() if theirs.get(k) != v)
                 found.append(_v("echo-mismatch", f"{header} echo differs from the command {line.name()}: "

@@ -14,6 +14,7 @@ grammar itself stays defined once, in ``spec.py`` and ``grammar.py``.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Iterable
 from typing import Final
 
 from . import spec
@@ -71,27 +72,29 @@ def _pattern(fs: spec.FrameSpec) -> re.Pattern[bytes]:
     return re.compile(b"".join(parts))
 
 
-# role -> header bytes -> (the pattern, the frame class, its field names, each field's radix: 0 for text)
-_Entry = tuple[re.Pattern[bytes], type[Frame], tuple[str, ...], tuple[int, ...]]
+# role -> header bytes -> (the pattern, the frame kind's constructor from its values in wire order, each
+# field's radix, 0 for text, and whether any field is text)
+_Make = Callable[[Iterable[object]], Frame]
+_Entry = tuple[re.Pattern[bytes], _Make, tuple[int, ...], bool]
 _TABLE: Final[dict[str, dict[bytes, _Entry]]] = {role: {} for role in spec.ROLES}
 for _fs in spec.FRAME_SPECS:
-    _TABLE[_fs.role][_fs.header.encode("ascii")] = (
-        _pattern(_fs), FRAME_CLASSES[_fs.key], _fs.field_names,
-        tuple(0 if spec.FIELDS[name].text else spec.FIELDS[name].radix for name in _fs.field_names))
+    _radixes = tuple(0 if spec.FIELDS[name].text else spec.FIELDS[name].radix for name in _fs.field_names)
+    _make: _Make = FRAME_CLASSES[_fs.key]._make  # type: ignore[attr-defined]  # the NamedTuple's own
+    _TABLE[_fs.role][_fs.header.encode("ascii")] = (_pattern(_fs), _make, _radixes, 0 in _radixes)
 
 
 def decode_clean(data: bytes, role: str) -> Frame | None:
     """The frame ``data`` holds if it is well formed and every field in range, else None (the caller,
-    ``codec.read_frame``, remembers the last distinct lines)."""
+    ``codec.read_frame``, remembers the last distinct lines). The pattern has checked every field, so the
+    frame is made from its values unchecked (``Frame``)."""
     entry = _TABLE[role].get(data[: spec.HEADER_WIDTH])
     if entry is None:
         return None
-    pattern, cls, names, radixes = entry
+    pattern, make, radixes, text = entry
     match = pattern.fullmatch(data)
     if match is None:
         return None
-    if 0 in radixes:  # a text field (the version) is kept as its digits
-        values = (text.decode("ascii") if not radix else int(text, radix)
-                  for text, radix in zip(match.groups(), radixes, strict=True))
-        return cls(**dict(zip(names, values, strict=True)), check=False)
-    return cls(**dict(zip(names, map(int, match.groups(), radixes), strict=True)), check=False)
+    if text:  # a text field (the version) is kept as its digits
+        return make([digits.decode("ascii") if not radix else int(digits, radix)
+                     for digits, radix in zip(match.groups(), radixes, strict=True)])
+    return make(map(int, match.groups(), radixes))

@@ -1,4 +1,4 @@
-"""Frames as inert data: one frozen dataclass per frame kind of docs/protocol.md "Frames".
+"""Frames as inert data: one immutable class per frame kind of docs/protocol.md "Frames".
 
 A frame knows its header, role and fields, checks its field ranges when built, and turns itself into
 wire bytes through the construct grammar. Behaviour (the device model, the conversation checker) lives
@@ -7,10 +7,8 @@ elsewhere. ``FRAME_CLASSES`` maps (header, role) to the class.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
-from dataclasses import dataclass
-from typing import Any, ClassVar, Final, TypeVar
+from typing import Any, ClassVar, Final, NamedTuple, TypeVar
 
 from . import grammar, spec
 from .errors import FrameError
@@ -53,13 +51,49 @@ def range_text(field: spec.FieldSpec, lo: int, hi: int) -> str:
     return f"{field.show(lo)}-{field.show(hi)}"
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class Frame:
-    """A decoded frame. Subclasses add the fields; ``to_bytes()`` gives the exact wire bytes."""
+class Frame(tuple[Any, ...]):
+    """A decoded frame: its field values in wire order, as a tuple (each kind is ``Frame`` first, then a
+    ``NamedTuple`` of its fields, so a frame is immutable and quick to build). Two frames are equal when
+    they are of the same kind with the same values; a frame is always true, even one without fields.
 
+    Building a frame by its fields' names (``ReadPoint(n=3)``) checks each field's type and range;
+    ``unchecked`` does not (the lenient decoder keeps what it saw), nor does ``_make`` (the NamedTuple's
+    constructor from the values in wire order; the fast decoder's, whose pattern has checked them).
+    ``to_bytes()`` gives the exact wire bytes."""
+
+    __slots__ = ()
     HEADER: ClassVar[str]
     ROLE: ClassVar[spec.Role]
-    check: dataclasses.InitVar[bool] = True  # False: the lenient decoder keeps what it saw (``unchecked``)
+
+    def __new__(cls: type[F], *args: Any, check: bool = True, **values: Any) -> F:
+        frame = super().__new__(cls, *args, **values)  # the NamedTuple base's
+        if check:
+            frame._check()
+        return frame
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):  # another kind, or a plain tuple of the same values: not equal
+            return False if isinstance(other, tuple) else NotImplemented
+        return tuple.__eq__(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return True if isinstance(other, tuple) else NotImplemented
+        return tuple.__ne__(self, other)
+
+    __hash__ = tuple.__hash__
+
+    def __bool__(self) -> bool:
+        return True
+
+    def __getnewargs_ex__(self) -> tuple[tuple[Any, ...], dict[str, Any]]:
+        """A copy or an unpickled frame is the frame it was, unchecked as it may have been made."""
+        return tuple(self), {"check": False}
+
+    def _unordered(self, other: object) -> bool:
+        return NotImplemented
+
+    __lt__ = __le__ = __gt__ = __ge__ = _unordered  # frames have no order (values of different kinds)
 
     @property
     def header(self) -> str:
@@ -74,17 +108,21 @@ class Frame:
         """This frame kind's row of ``spec.FRAME_SPECS``."""
         return spec.SPECS[(cls.HEADER, cls.ROLE)]
 
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        """The field names in wire order."""
+        names: tuple[str, ...] = cls._fields  # type: ignore[attr-defined]  # the NamedTuple base's
+        return names
+
     def fields(self) -> dict[str, Any]:
         """The field values by name, in wire order."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        return dict(zip(self.field_names(), self, strict=True))
 
     def to_bytes(self) -> bytes:
         return bytes(grammar.STRUCTS[(self.HEADER, self.ROLE)].build(self.fields()))
 
-    def __post_init__(self, check: bool = True) -> None:
-        """Each field's type and range (``check`` False: none; a lenient decode keeps out-of-range values)."""
-        if not check:
-            return
+    def _check(self) -> None:
+        """Each field's type and range."""
         fs = self.frame_spec()
         offsets = fs.offsets()
         for name, value in self.fields().items():
@@ -133,21 +171,17 @@ def describe(frame: Frame) -> str:
 _described = functools.lru_cache(maxsize=4096)(describe)
 
 
-# ---- commands (docs/protocol.md "Frames", rows 1-10 and the alarm reset) ----
+# ---- the field shapes (the NamedTuple half of each frame kind) ----
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ReadPoint(Frame):
-    """0RP: read movement data of point N."""
-    HEADER = "0RP"
-    ROLE = spec.COMMAND
+class _Nothing(NamedTuple):
+    pass
+
+
+class _N(NamedTuple):
     n: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class WritePoint(Frame):
-    """0WP: write movement data of point N."""
-    HEADER = "0WP"
-    ROLE = spec.COMMAND
+class _Point(NamedTuple):
     n: int
     v: int
     a: int
@@ -155,178 +189,196 @@ class WritePoint(Frame):
     pos: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ReadCurrent(Frame):
-    """0RC: read the current position."""
-    HEADER = "0RC"
-    ROLE = spec.COMMAND
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class StoreCurrent(Frame):
-    """0WC: store the current position into point N."""
-    HEADER = "0WC"
-    ROLE = spec.COMMAND
-    n: int
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class MovePoint(Frame):
-    """0MP: move to point N; N = 0 homes."""
-    HEADER = "0MP"
-    ROLE = spec.COMMAND
-    n: int
-
-
-@dataclass(frozen=True, kw_only=True, slots=True)
-class MoveDirect(Frame):
-    """0MV: direct move to Pos at speed vel with acceleration A."""
-    HEADER = "0MV"
-    ROLE = spec.COMMAND
+class _Direct(NamedTuple):
     vel: int
     a: int
     pos: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ReadOutputs(Frame):
+class _O(NamedTuple):
+    o: int
+
+
+class _Mode(NamedTuple):
+    mode: int
+
+
+class _Version(NamedTuple):
+    version: str
+
+
+class _Code(NamedTuple):
+    code: int
+
+
+# ---- commands (docs/protocol.md "Frames", rows 1-10 and the alarm reset) ----
+
+class ReadPoint(Frame, _N):
+    """0RP: read movement data of point N."""
+    __slots__ = ()
+    HEADER = "0RP"
+    ROLE = spec.COMMAND
+
+
+class WritePoint(Frame, _Point):
+    """0WP: write movement data of point N."""
+    __slots__ = ()
+    HEADER = "0WP"
+    ROLE = spec.COMMAND
+
+
+class ReadCurrent(Frame, _Nothing):
+    """0RC: read the current position."""
+    __slots__ = ()
+    HEADER = "0RC"
+    ROLE = spec.COMMAND
+
+
+class StoreCurrent(Frame, _N):
+    """0WC: store the current position into point N."""
+    __slots__ = ()
+    HEADER = "0WC"
+    ROLE = spec.COMMAND
+
+
+class MovePoint(Frame, _N):
+    """0MP: move to point N; N = 0 homes."""
+    __slots__ = ()
+    HEADER = "0MP"
+    ROLE = spec.COMMAND
+
+
+class MoveDirect(Frame, _Direct):
+    """0MV: direct move to Pos at speed vel with acceleration A."""
+    __slots__ = ()
+    HEADER = "0MV"
+    ROLE = spec.COMMAND
+
+
+class ReadOutputs(Frame, _Nothing):
     """0RS: read the OUT ports."""
+    __slots__ = ()
     HEADER = "0RS"
     ROLE = spec.COMMAND
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class WriteOutputs(Frame):
+class WriteOutputs(Frame, _O):
     """0WS: write the OUT ports."""
+    __slots__ = ()
     HEADER = "0WS"
     ROLE = spec.COMMAND
-    o: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ReadVersion(Frame):
+class ReadVersion(Frame, _Nothing):
     """0RV: read the firmware version."""
+    __slots__ = ()
     HEADER = "0RV"
     ROLE = spec.COMMAND
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class SwitchMode(Frame):
+class SwitchMode(Frame, _Mode):
     """0CM: switch mode (0 external start, 1 communication)."""
+    __slots__ = ()
     HEADER = "0CM"
     ROLE = spec.COMMAND
-    mode: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class AlarmReset(Frame):
+class AlarmReset(Frame, _Nothing):
     """0%C: reset every alarm but emergency stop."""
+    __slots__ = ()
     HEADER = "0%C"
     ROLE = spec.COMMAND
 
 
 # ---- answers ----
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class PointAnswer(Frame):
+class PointAnswer(Frame, _Point):
     """Shape shared by the 16-byte answers: N V A O 2 Pos."""
-    n: int
-    v: int
-    a: int
-    o: int
-    pos: int
+    __slots__ = ()
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
 class ReadPointAnswer(PointAnswer):
     """0RP answer: the movement data of point N."""
+    __slots__ = ()
     HEADER = "0RP"
     ROLE = spec.ANSWER
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
 class WritePointAnswer(PointAnswer):
     """0WP answer: the write result, an echo of the command."""
+    __slots__ = ()
     HEADER = "0WP"
     ROLE = spec.ANSWER
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
 class ReadCurrentAnswer(PointAnswer):
     """0RC answer: the current position (FFFFFF before homing)."""
+    __slots__ = ()
     HEADER = "0RC"
     ROLE = spec.ANSWER
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
 class StoreCurrentAnswer(PointAnswer):
     """0WC answer: point N's data after the store."""
+    __slots__ = ()
     HEADER = "0WC"
     ROLE = spec.ANSWER
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
 class MovePointAnswer(PointAnswer):
     """0MP answer, sent when the move has ended."""
+    __slots__ = ()
     HEADER = "0MP"
     ROLE = spec.ANSWER
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class MoveDirectAnswer(Frame):
+class MoveDirectAnswer(Frame, _Direct):
     """0MV answer, an echo of the command sent when the move has ended."""
+    __slots__ = ()
     HEADER = "0MV"
     ROLE = spec.ANSWER
-    vel: int
-    a: int
-    pos: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ReadOutputsAnswer(Frame):
+class ReadOutputsAnswer(Frame, _O):
     """0RS answer: the OUT ports."""
+    __slots__ = ()
     HEADER = "0RS"
     ROLE = spec.ANSWER
-    o: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class WriteOutputsAnswer(Frame):
+class WriteOutputsAnswer(Frame, _O):
     """0WS answer, an echo of the command."""
+    __slots__ = ()
     HEADER = "0WS"
     ROLE = spec.ANSWER
-    o: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class ReadVersionAnswer(Frame):
+class ReadVersionAnswer(Frame, _Version):
     """0RV answer: three digits, ``100`` = version 1.00."""
+    __slots__ = ()
     HEADER = "0RV"
     ROLE = spec.ANSWER
-    version: str
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class SwitchModeAnswer(Frame):
+class SwitchModeAnswer(Frame, _Mode):
     """0CM answer, an echo carrying the mode."""
+    __slots__ = ()
     HEADER = "0CM"
     ROLE = spec.ANSWER
-    mode: int
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class AlarmResetAnswer(Frame):
+class AlarmResetAnswer(Frame, _Nothing):
     """0%C answer: ``0%C00``."""
+    __slots__ = ()
     HEADER = "0%C"
     ROLE = spec.ANSWER
 
 
-@dataclass(frozen=True, kw_only=True, slots=True)
-class AlarmAnswer(Frame):
+class AlarmAnswer(Frame, _Code):
     """0%% answer: the (latched) alarm code, sent in place of any answer."""
+    __slots__ = ()
     HEADER = "0%%"
     ROLE = spec.ANSWER
-    code: int
 
     @property
     def meaning(self) -> str:
