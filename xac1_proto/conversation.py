@@ -69,7 +69,6 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from operator import attrgetter
 from typing import Final, Generic, Literal, NamedTuple, TypeVar
 
 from . import motion, spec
@@ -211,18 +210,11 @@ class Verdict(NamedTuple):
 _verdict: Final = Verdict._make
 
 
-def _values_getter(names: tuple[str, ...]) -> Callable[[Frame], tuple[object, ...]]:
-    if not names:
-        return lambda frame: ()
-    get = attrgetter(*names)
-    return (lambda frame: (get(frame),)) if len(names) == 1 else get
-
-
-# answer header -> its field values in wire order, for the answers that echo their command (compared with
-# the command's values)
-_ECHOED: Final[dict[str, Callable[[Frame], tuple[object, ...]]]] = {
-    fs.header: _values_getter(fs.field_names)
-    for fs in spec.FRAME_SPECS if fs.echo and fs.role == spec.ANSWER}
+# the answers that echo their command: the same fields as the command's, so a frame's values in wire order
+# (a frame is a tuple of them) are compared with the command's
+_ECHOED: Final = frozenset(fs.header for fs in spec.FRAME_SPECS if fs.echo and fs.role == spec.ANSWER)
+assert all(spec.SPECS[(h, spec.ANSWER)].field_names == spec.SPECS[(h, spec.COMMAND)].field_names
+           for h in _ECHOED), "an echo carries its command's fields"
 # headers whose command and answer both carry N (an answer for another N is another command's)
 _BOTH_N: Final = frozenset(
     fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND and "n" in fs.field_names
@@ -817,9 +809,8 @@ class Conversation:
         if header != line.header:
             found.append(_v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
             return False
-        values = _ECHOED.get(header)
-        if values is not None:
-            if values(frame) != values(cmd):
+        if header in _ECHOED:
+            if tuple.__ne__(frame, cmd):
                 mine, theirs = frame.fields(), cmd.fields()
                 diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
                                  for k, v in mine.items() if theirs.get(k) != v)
