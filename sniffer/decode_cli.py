@@ -369,12 +369,15 @@ def _few_collections() -> Iterator[None]:
 
 
 def _data_came(capture: Capture, report: Report) -> Iterator[Chunk]:
-    """The capture's chunks; from the first on, no longer a wrong format however many problems follow."""
+    """The capture's chunks; from the first on, no longer a wrong format however many problems follow
+    (the first is read here; the others come from the capture's own iterator, through ``chain``)."""
+    import itertools
+
     chunks = iter(capture)
     for first in chunks:
         report.give_up_after = None
-        yield first
-        yield from chunks
+        return itertools.chain((first,), chunks)
+    return chunks
 
 
 def _print_problems(report: Report, at_most: int | None = None) -> None:

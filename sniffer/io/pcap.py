@@ -92,10 +92,11 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
     if magic not in _PCAP_MAGIC and magic != _SHB:
         raise FormatError(f"{src.name}: not a pcap or pcapng file (first bytes {magic.hex(' ')})")
     walk = _Walk(src, buf, Sides("pcap", host_is, ("TX", "RX")))
-    if magic == _SHB:
-        yield from _pcapng_chunks(walk)
-    elif _pcap_start(walk, magic):
-        yield from _pcap_chunks(walk)
+    if magic == _SHB:  # (the walk itself is the iterator: no generator hands its chunks on)
+        return _pcapng_chunks(walk)
+    if _pcap_start(walk, magic):
+        return _pcap_chunks(walk)
+    return iter(())
 
 
 class _Buffer:

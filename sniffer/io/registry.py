@@ -12,6 +12,7 @@ having no time, are paired by order.
 from __future__ import annotations
 
 import heapq
+import itertools
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -150,19 +151,22 @@ class Capture:
         return self.module.read(src, self.host_is, **kwargs)
 
     def __iter__(self) -> Iterator[Chunk]:
+        """The chunks of every source (merged by time when there are several), then the end checks. The
+        reader's own iterator comes out as it is (``chain``): no generator hands each chunk on."""
         if self.module is raw:
-            yield from raw.read_files(self.sources, self.host_is)
-            return
+            return raw.read_files(self.sources, self.host_is)
         sides = Sides(self.format, self.host_is) if getattr(self.module, "MULTI_FILE", False) else None
         streams = [self._one(src, sides) for src in self.sources]
-        if len(streams) == 1:
-            yield from streams[0]
-        else:
-            yield from heapq.merge(*streams, key=_time_key)
+        merged = streams[0] if len(streams) == 1 else heapq.merge(*streams, key=_time_key)
+        return itertools.chain(merged, self._ended(sides))
+
+    def _ended(self, sides: Sides | None) -> Iterator[Chunk]:
+        """No chunk: the checks at the end of the sources (a generator, run when they are all read)."""
         for src in self.sources:
             src.check_end()
         if sides is not None:
             sides.check(self.report, ", ".join(s.name for s in self.sources))
+        yield from ()
 
     def close(self) -> None:
         for s in self.sources:
