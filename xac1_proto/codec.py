@@ -197,6 +197,8 @@ class Reading(NamedTuple):
     error: bool
 
 
+_reading: Final = Reading._make  # the NamedTuple's own constructor from a tuple (no keyword handling)
+_ROLES: Final = frozenset(spec.ROLES)
 READ_CACHE: Final = 4096  # distinct (bytes, role) remembered: about 2 MiB at most
 
 
@@ -205,10 +207,10 @@ def read_frame(data: bytes, role: str) -> Reading:
     """``diagnose`` with the header and the verdict on errors, of ``data`` as ``bytes``: a pure function
     of the bytes, so the last ``READ_CACHE`` distinct lines are remembered (traffic repeats its commands
     and most answers)."""
-    checked = _check_role(role)
-    clean = decode_clean(data, checked)  # most traffic: a well-formed frame, no walk needed
+    clean = decode_clean(data, role) if role in _ROLES else None  # most traffic: a well-formed frame
     if clean is not None:
-        return Reading(clean, (), clean.HEADER, False)
+        return _reading((clean, (), clean.HEADER, False))
+    checked = _check_role(role)
     frame, found = _diagnose_faulty(data, checked)
     header = frame.header if frame is not None else header_of(data, checked)
     error = frame is None or any(v.code not in spec.NOTICES for v in found)

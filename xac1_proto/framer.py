@@ -87,11 +87,11 @@ LINE_CACHE: Final = 4096  # distinct lines ``_one_frame_test`` remembers, for ea
 def _one_frame_test(max_frame: int) -> Callable[[bytes], bool]:
     """``_is_one_frame`` for frames of at most ``max_frame`` bytes, as a pure function of the bytes: the
     last ``LINE_CACHE`` distinct lines are remembered (traffic repeats its lines)."""
-    line = _line_pattern(max_frame).fullmatch
+    line, strong = _line_pattern(max_frame).fullmatch, _STRONG.search
 
     @functools.lru_cache(maxsize=LINE_CACHE)
     def one_frame(data: bytes) -> bool:
-        return _is_one_frame(data, line)
+        return line(data) is not None and strong(data, 1) is None  # (``_is_one_frame``, one call less)
 
     return one_frame
 
