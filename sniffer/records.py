@@ -307,11 +307,14 @@ class Tally:
     def count(self, seen: Iterable[Counted], line_errors: int = 0) -> None:
         """Count frames, junk runs, frames the data ended inside and missed answers (``Counted``), of which
         ``line_errors`` carry a line error on their bytes: commands by header, answers by header with their
-        latency by the command's header, violations by side. (One pass with locals; the latencies go to
-        their ``LatencyStats`` a batch at a time.)"""
-        commands, answers, headers = self.commands, self.answers, self._headers
+        latency by the command's header, violations by side. (One pass with locals, over plain lists and
+        dicts, whose operations are the interpreter's fast ones; the headers go to their ``Counter``s and
+        the latencies to their ``LatencyStats`` a batch at a time.)"""
+        headers = self._headers
         latencies: defaultdict[str, list[float]] = defaultdict(list)
         host_bytes = device_bytes = junk = 0
+        commands: list[str] = []  # the headers seen, counted in one C-level pass at the end
+        answers: list[str] = []
         for v in seen:
             kind = v.kind
             if v.violations:
@@ -319,13 +322,13 @@ class Tally:
             if kind == "host-frame":
                 host_bytes += len(v.raw)
                 header = v.header or "?"
-                commands[header] += 1
+                commands.append(header)
                 headers[v.i] = header  # type: ignore[index]
                 if len(headers) > _MAX_WAITING:  # commands never answered: forget the oldest
                     del headers[next(iter(headers))]
             elif kind == "device-frame":
                 device_bytes += len(v.raw)
-                answers[v.header or "?"] += 1
+                answers.append(v.header or "?")
                 reply_to = v.reply_to
                 if reply_to is not None:
                     command = headers.pop(reply_to, "?")
@@ -338,6 +341,8 @@ class Tally:
                 else:
                     device_bytes += len(v.raw)
                 junk += kind != "cut"
+        self.commands.update(commands)
+        self.answers.update(answers)
         self.bytes["host"] += host_bytes
         self.bytes["device"] += device_bytes
         self.junk_runs += junk
