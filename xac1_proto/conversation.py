@@ -384,7 +384,12 @@ class Conversation:
                    window: float | None = None) -> list[Verdict]:
         """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
         for its answer, when it says so (the client); else the engine's answer window."""
-        out = [] if t_first is None else self.tick(t_first, self._answer_since)
+        if t_first is not None and self._queue:  # lines wait: their windows may have closed
+            out = self.tick(t_first, self._answer_since)
+        else:  # (the usual command: nothing waits, so time passing closes no window)
+            out = []
+            if t_first is not None and (self._last_t is None or t_first > self._last_t):
+                self._last_t = t_first
         i = self._next_i
         self._next_i = i + 1
         raw = raw if type(raw) is bytes else bytes(raw)
