@@ -123,11 +123,7 @@ class Frame(tuple[Any, ...]):
 
     def _check(self) -> None:
         """Each field's type and range."""
-        fs = self.frame_spec()
-        offsets = fs.offsets()
-        for name, value in self.fields().items():
-            field = spec.FIELDS[name]
-            where = f"{fs.header} {fs.role}: byte {offsets[name]}"
+        for value, (field, lo, hi, where) in zip(self, _field_checks(type(self)), strict=True):
             if field.text:
                 if not (isinstance(value, str) and len(value) == field.width and value.isdigit()
                         and value.isascii()):
@@ -136,8 +132,7 @@ class Frame(tuple[Any, ...]):
                                      f"got {value!r} (field-range)")
                 continue
             if not isinstance(value, int) or isinstance(value, bool):
-                raise TypeError(f"{fs.header} {fs.role}: {field.label} must be an int, got {value!r}")
-            lo, hi = fs.field_range(name)
+                raise TypeError(f"{self.HEADER} {self.ROLE}: {field.label} must be an int, got {value!r}")
             if not lo <= value <= hi:
                 raise FrameError("field-range", None,
                                  f"{where}: {field.label} must be {range_text(field, lo, hi)}, "
@@ -155,6 +150,16 @@ class Frame(tuple[Any, ...]):
             return _described(self)
         except TypeError:  # a lenient frame holding a value that cannot be hashed
             return describe(self)
+
+
+@functools.cache
+def _field_checks(cls: type[Frame]) -> tuple[tuple[spec.FieldSpec, int, int, str], ...]:
+    """Each field of a frame kind, in wire order: its spec, its range (0, 0 for text) and where it is in
+    the frame (``Frame._check``'s, worked out once a kind)."""
+    fs = cls.frame_spec()
+    offsets = fs.offsets()
+    return tuple((spec.FIELDS[name], *((0, 0) if spec.FIELDS[name].text else fs.field_range(name)),
+                  f"{fs.header} {fs.role}: byte {offsets[name]}") for name in cls.field_names())
 
 
 def describe(frame: Frame) -> str:
