@@ -245,13 +245,13 @@ class _Transfers:
         handed to the clocks before anything else."""
         known, sizes, following, dirs = self.known, self.sizes, self.following, self.dirs
         timeline, nine = self.timeline, self.clock.fraction
-        tol, max_transfer, new, seconds = TOLERANCE_S, _MAX_TRANSFER, Chunk, _SECONDS
+        tol, new, seconds = TOLERANCE_S, Chunk, _SECONDS
         crlf = b"\r\n" in self.src.head()  # (nothing is read yet)
         findall, minute_ok = _block_matcher(_base.MAX_LINE, crlf).findall, _MINUTE.match
         minute, base = self.minute
         last_second, second_base = "", 0.0  # a header's YYYY/MM/DD HH:MM:SS read here and its start
-        held: Chunk | None = None  # a whole transfer read here, handed on at the next header
-        h_line = 0  # its header's line
+        held: Chunk | None = None  # a whole transfer read here, handed on at the next header (its header's
+        # line is the one before its row's: ``number - 1`` until the next line is numbered, then ``- 2``)
         number, continued = 0, False  # the last line's number; whether its last piece had no line end
         here = True  # lines are read here (no piece of a long line going on, no -v text being read)
         last_t = timeline.last  # the time of the last header read here (times.last too, when it was one)
@@ -267,12 +267,12 @@ class _Transfers:
                         held = None
                     elif self.cur is not None and (chunk := self.finish(number)) is not None:
                         yield chunk
-                    length = sizes.get(length_s) or self._size(length_s)
+                    length = sizes.get(length_s)  # (a length remembered is at most 16 MiB)
                     first = following.get(mark, -1)  # from= as expected and to= as length= says: said
-                    if from_s == str(first) and to_s == str(first + length - 1) and length <= max_transfer:
+                    if length is not None and from_s == str(first) and to_s == str(first + length - 1):
                         following[mark] = first + length  # with two numbers written, not three read
                     else:
-                        length = self._counters(number, mark, length, int(from_s), int(to_s))
+                        length = self._counters(number, mark, self._size(length_s), int(from_s), int(to_s))
                     if second != last_second and second[:16] == minute:  # a new second of this minute
                         last_second, second_base = second, base + seconds[second[17:]]
                     if second == last_second:
@@ -293,7 +293,7 @@ class _Transfers:
                     data = known.get(row) or self._hex_row(row)
                     if data:
                         if len(data) == length:
-                            held, h_line = new(t, dirs[mark], data), number - 1
+                            held = new(t, dirs[mark], data)  # its header's line: number - 1
                             continue
                         cur = self.cur = _Transfer(number - 1, dirs[mark], t, length)
                         cur.mode = _HEXMODE
@@ -311,7 +311,7 @@ class _Transfers:
                     text = line.rstrip("\r")
                     data = known.get(text) or self._hex_row(text)
                     if held is not None:
-                        self._hold(h_line, held)
+                        self._hold(number - 2, held)
                         held = None
                     cur = self.cur
                     assert cur is not None
@@ -334,7 +334,7 @@ class _Transfers:
                     else:
                         texts = [piece.rstrip("\r") if piece else line.rstrip("\r")]
                 if held is not None:  # the transfer held becomes the state step reads
-                    self._hold(h_line, held)
+                    self._hold(number - 2, held)
                     held = None
                 self._clocks(last_t)
                 for i, text in enumerate(texts):
@@ -346,7 +346,7 @@ class _Transfers:
                 last_t = timeline.last
                 here = not continued and ((cur := self.cur) is None or cur.mode is not _TEXT)
         if held is not None:
-            self._hold(h_line, held)
+            self._hold(number - 1, held)
         self._clocks(last_t)
         if blocks.tail:  # the last line has no line end
             if not continued:
@@ -370,10 +370,13 @@ class _Transfers:
         cur.data += held.data
 
     def _size(self, text: str) -> int:
-        """``length=``'s number (remembered: a conversation's transfers have few lengths)."""
-        if len(self.sizes) >= _KNOWN:
-            self.sizes.clear()
-        size = self.sizes[text] = int(text)
+        """``length=``'s number (remembered when it is plausible, at most 16 MiB: a conversation's transfers
+        have few lengths)."""
+        size = int(text)
+        if size <= _MAX_TRANSFER:
+            if len(self.sizes) >= _KNOWN:
+                self.sizes.clear()
+            self.sizes[text] = size
         return size
 
     def _counters(self, number: int, mark: str, length: int, start: int, end: int) -> int:
