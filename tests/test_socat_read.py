@@ -437,8 +437,8 @@ def _clean(n: int, seed: int = 1) -> str:
 
 
 def test_memory_stays_bounded() -> None:
-    """The block buffer holds at most a block and a line; the hex rows remembered are bounded in number and
-    size, whatever the file (long lines, many distinct transfers)."""
+    """The block buffer holds at most a block and a line; the hex rows and lengths remembered are bounded
+    in number and size, whatever the file (long lines, many distinct transfers)."""
     rows, count = [], 0
     for i in range(socat_mod._KNOWN + 500):  # distinct rows, lengths from 2 to 41 (some on their own)
         length = 2 + (i % 40 if i < socat_mod._KNOWN else i)
@@ -470,6 +470,7 @@ def test_memory_stays_bounded() -> None:
     assert 4096 < largest[0] <= 4096 + base_mod.MAX_LINE
     assert 0 < len(builders[0].known) <= socat_mod._KNOWN
     assert all(len(row) <= socat_mod._KNOWN_TEXT for row in builders[0].known)
+    assert 0 < len(builders[0].sizes) <= socat_mod._KNOWN
 
 
 # ---------------------------------------------------------------- the block matcher ----
