@@ -494,6 +494,24 @@ def test_a_header_cut_by_a_line_end_is_not_joined_to_the_next_line() -> None:
         f"{path}:6: transfer says length=3 but its dump holds 2 byte(s) (cut short before line 7)"]
 
 
+def test_a_length_beyond_16_mib_is_reported_at_every_header_that_says_it() -> None:
+    """``length=`` beyond 16 MiB is no transfer socat writes: reported at each header that says it (the
+    same text again included: such a length is not remembered as a known one), read as 16 MiB, so the
+    transfer is then cut short; its bytes are kept; the same at every block size."""
+    text = ("> 2024/05/01 10:00:00.000001  length=20000000 from=0 to=19999999\n 30 31\n"
+            "> 2024/05/01 10:00:00.000002  length=20000000 from=20000000 to=39999999\n 30\n")
+    events, _, report = read_any_block(text, (socat_mod.BLOCK, 1, 7))
+    path = Path(_TMP.name) / "dump.log"
+    implausible = ("length=20000000 is not plausible for one transfer (expected at most 16777216); read as "
+                   "that")
+    assert [e[2] for e in events] == [b"01", b"0"]
+    assert report["problems"] == [
+        f"{path}:1: {implausible}",
+        f"{path}:1: transfer says length=16777216 but its dump holds 2 byte(s) (cut short before line 3)",
+        f"{path}:3: {implausible}",
+        f"{path}:3: transfer says length=16777216 but its dump holds 1 byte(s) (cut short before line 4)"]
+
+
 def test_a_second_past_59_is_reported_in_any_minute() -> None:
     """Second 60 to 99 is no time, whether its minute is new or was seen on the header before: reported
     at its header, the bytes kept with the previous time (a version said so only of a minute's first
