@@ -375,6 +375,33 @@ def test_times_are_wallclock_s_bit_for_bit() -> None:
     assert [e[0] for e in events] == want and report["problems"] == []
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.sampled_from(DATES[:3]), st.integers(0, 86000),
+       st.lists(st.tuples(st.sampled_from([0, 0, 0, 0, 1, 1, 59, 60, 61, 3600]), st.integers(0, 999999),
+                          st.booleans()), min_size=1, max_size=40),
+       st.sampled_from(BLOCKS))
+def test_times_in_one_second_and_across_minutes_are_wallclock_s(date: str, second: int,
+                                                               steps: list[tuple[int, int, bool]],
+                                                               block: int) -> None:
+    """A header's time is wallclock's float for its text (bit for bit) whether its second is the one of the
+    header before (its start remembered), a new second of the same minute, or in a new minute or hour;
+    six-digit fractions and socat 1.7's nine digits behind ``000`` mixed; nothing reported; the same at
+    every block size."""
+    out, want = [], []
+    for i, (step, micro, nine) in enumerate(steps):
+        second += step
+        if second >= 86400:
+            break
+        clock = f"{second // 3600:02d}:{second // 60 % 60:02d}:{second % 60:02d}"
+        fraction = f"000{micro:06d}" if nine else f"{micro:06d}"
+        out.append(f"{'><'[i % 2]} {date} {clock}.{fraction}  length=1 from={i // 2} to={i // 2}\n"
+                   f" {micro % 256:02x}\n")
+        want.append(_bits(wallclock(date, f"{clock}.{micro:06d}")))
+    events, end, report = read_any_block("".join(out), (socat_mod.BLOCK, block))
+    assert [e[0] for e in events] == want
+    assert report["problems"] == [] and end[0] == "end"
+
+
 # ---------------------------------------------------------------- time, memory ----
 
 def test_a_clock_set_back_is_a_problem_of_the_capture() -> None:
@@ -465,6 +492,24 @@ def test_a_header_cut_by_a_line_end_is_not_joined_to_the_next_line() -> None:
         f"{path}:6: 1 byte(s) of the '>' side are missing before this transfer (from=6, the previous one "
         f"ended at to=4)",
         f"{path}:6: transfer says length=3 but its dump holds 2 byte(s) (cut short before line 7)"]
+
+
+def test_a_length_beyond_16_mib_is_reported_at_every_header_that_says_it() -> None:
+    """``length=`` beyond 16 MiB is no transfer socat writes: reported at each header that says it (the
+    same text again included: such a length is not remembered as a known one), read as 16 MiB, so the
+    transfer is then cut short; its bytes are kept; the same at every block size."""
+    text = ("> 2024/05/01 10:00:00.000001  length=20000000 from=0 to=19999999\n 30 31\n"
+            "> 2024/05/01 10:00:00.000002  length=20000000 from=20000000 to=39999999\n 30\n")
+    events, _, report = read_any_block(text, (socat_mod.BLOCK, 1, 7))
+    path = Path(_TMP.name) / "dump.log"
+    implausible = ("length=20000000 is not plausible for one transfer (expected at most 16777216); read as "
+                   "that")
+    assert [e[2] for e in events] == [b"01", b"0"]
+    assert report["problems"] == [
+        f"{path}:1: {implausible}",
+        f"{path}:1: transfer says length=16777216 but its dump holds 2 byte(s) (cut short before line 3)",
+        f"{path}:3: {implausible}",
+        f"{path}:3: transfer says length=16777216 but its dump holds 1 byte(s) (cut short before line 4)"]
 
 
 def test_a_second_past_59_is_reported_in_any_minute() -> None:

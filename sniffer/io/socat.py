@@ -20,13 +20,14 @@ One parser: the file is read in blocks of ``BLOCK`` characters (``_Blocks``: nev
 handed on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
 (numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number), every
 character accounted for: the lines that make up almost every dump, a header as socat writes it and the
-hex row after it, as one match with their fields; any other line as itself. The transfer builder
-(``_Transfers``: one chunk per transfer, handed on in bounded pieces; ``length=`` beyond 16 MiB is
-damage) takes the header-and-row matches, further hex rows and the ``--`` that ends a ``-x -v`` transfer
-itself (``read``): the counters checked by writing the two numbers it expects (``from=`` where the
-side's last transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and
-checked in full, ``_counters``, when they differ), the time computed as ``wallclock`` computes it (the
-minute's start remembered, plus the seconds and the fraction). A hex row's bytes come from
+line after it when that starts with a space (its hex row), as one match with their fields; any other
+line as itself. The transfer builder (``_Transfers``: one chunk per transfer, handed on in bounded
+pieces; ``length=`` beyond 16 MiB is damage) takes the header-and-row matches, further hex rows and the
+``--`` that ends a ``-x -v`` transfer itself (``read``): the counters checked by writing the two numbers
+it expects (``from=`` where the side's last transfer ended, ``to=`` where ``length=`` ends) and
+comparing them with the text (read and checked in full, ``_counters``, when they differ), the time
+computed as ``wallclock`` computes it (the start of the header's second remembered, found from the
+minute's start when the second changes, plus the fraction). A hex row's bytes come from
 ``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them),
 else from ``_HEX`` itself; short rows and lengths are remembered (a conversation repeats itself). Every
 other line, any line while -v text is being read, and a header the match does not take (another
@@ -126,18 +127,20 @@ def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
 def _block_matcher(max_line: int, crlf: bool) -> re.Pattern[str]:
     """What ``findall`` cuts a region of whole lines into, each line accounted for (no character skipped):
     a header as socat writes it (``[0-5]`` seconds, six or nine digits of fraction, two spaces; a CR after
-    it when ``crlf``) with the line after it when that starts with a space (a hex row, CR and LF excluded);
-    any other line (up to ``max_line`` characters with its line end); or ``max_line`` characters of a
-    longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM`` (its digits checked by ``_MINUTE`` when it
-    changes), seconds, fraction (with its point), length, from, to, row; the other line; the piece. A line
-    limit shorter than a header turns the first kind off. (A CR that may end a line costs a tenth of the
-    matching: a file whose first lines end with LF alone is matched without; any line ending CR LF in it
-    is then another line, read by ``step``.)"""
-    header = (r"([<>]) (.{16}):([0-5][0-9])(\.[0-9]{6}|\.[0-9]{9})  "
-              r"length=([0-9]{1,18}) from=([0-9]{1,18}) to=([0-9]{1,18})\r?\n"
-              rf"(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
+    it when ``crlf``) with the line after it when that starts with a space (a hex row, its line end
+    excluded); any other line (up to ``max_line`` characters with its line end); or ``max_line``
+    characters of a longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM:SS`` (one string: compared
+    with the header before's; its date and minute checked by ``_MINUTE`` when they change), fraction
+    (with its point), length, from, to, row; the other line; the piece (each group costs ``findall`` a
+    string). A line limit shorter than a header turns the first kind off. (A CR that may end a line costs
+    a tenth of the matching: a file whose first lines end with LF alone is matched without, and its rows
+    up to the LF, ``[^\n]`` being counted much faster than ``[^\r\n]``; a line ending CR LF in it is then
+    another line, read by ``step``, or a row whose CR ``read`` strips where it is not read as hex, as
+    ``_HEX`` reads it with the CR.)"""
+    header = (r"([<>]) (.{16}:[0-5][0-9])(\.[0-9]{6}|\.[0-9]{9})  length=([0-9]{1,18}) from=([0-9]{1,18}) "
+              rf"to=([0-9]{{1,18}})\r?\n(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
     if not crlf:
-        header = header.replace(r"\r?", "")
+        header = header.replace(r"\r?", "").replace(r"[^\r\n]", r"[^\n]")
     return re.compile(("" if max_line > _LONGEST_HEADER else "(?!)") + header
                       + rf"|([^\n]{{0,{max_line - 1}}})\n|([^\n]{{{max_line}}})")
 
@@ -241,80 +244,74 @@ class _Transfers:
         ``cur`` before anything else reads the state). The line number and the last time are locals too,
         handed to the clocks before anything else."""
         known, sizes, following, dirs = self.known, self.sizes, self.following, self.dirs
-        timeline = self.timeline
-        tol, max_transfer, new, seconds = TOLERANCE_S, _MAX_TRANSFER, Chunk, _SECONDS
-        nine = self.clock.fraction
+        timeline, nine = self.timeline, self.clock.fraction
+        tol, new, seconds = TOLERANCE_S, Chunk, _SECONDS
         crlf = b"\r\n" in self.src.head()  # (nothing is read yet)
-        findall, minute_ok = _block_matcher(_base.MAX_LINE, crlf).findall, _MINUTE.fullmatch
+        findall, minute_ok = _block_matcher(_base.MAX_LINE, crlf).findall, _MINUTE.match
         minute, base = self.minute
-        held: Chunk | None = None  # a whole transfer read here, handed on at the next header
-        h_line = 0  # its header's line
+        last_second, second_base = "", 0.0  # a header's YYYY/MM/DD HH:MM:SS read here and its start
+        held: Chunk | None = None  # a whole transfer read here, handed on at the next header (its header's
+        # line is the one before its row's: ``number - 1`` until the next line is numbered, then ``- 2``)
         number, continued = 0, False  # the last line's number; whether its last piece had no line end
+        here = True  # lines are read here (no piece of a long line going on, no -v text being read)
         last_t = timeline.last  # the time of the last header read here (times.last too, when it was one)
         t: float | None
+        cur: _Transfer | None
+        texts: list[str]
         for region in blocks.regions():
-            for mark, stamp, ss, frac, length_s, from_s, to_s, row, line, piece in findall(*region):
-                if mark and not continued and (held is not None or (cur := self.cur) is None or
-                                               cur.mode is not _TEXT) and \
-                        (stamp == minute or minute_ok(stamp)):
+            for mark, second, frac, length_s, from_s, to_s, row, line, piece in findall(*region):
+                if mark and here and (second == last_second or second[:16] == minute or minute_ok(second)):
                     number += 1
                     if held is not None:  # the transfer before ends
                         yield held
                         held = None
-                    elif cur is not None and (chunk := self.finish(number)) is not None:
+                    elif self.cur is not None and (chunk := self.finish(number)) is not None:
                         yield chunk
-                    length = sizes.get(length_s)
-                    if length is None:
-                        length = self._size(length_s)
+                    length = sizes.get(length_s)  # (a length remembered is at most 16 MiB)
                     first = following.get(mark, -1)  # from= as expected and to= as length= says: said
-                    if from_s == str(first) and to_s == str(first + length - 1) and length <= max_transfer:
+                    if length is not None and from_s == str(first) and to_s == str(first + length - 1):
                         following[mark] = first + length  # with two numbers written, not three read
                     else:
-                        length = self._counters(number, mark, length, int(from_s), int(to_s))
-                    if stamp == minute:  # the whole second plus the fraction (wallclock's float: both
-                        # are the nearest float to the same number)
-                        t = base + seconds[ss] + float(frac if len(frac) == 7 else "." + nine(frac[1:]))
+                        length = self._counters(number, mark, self._size(length_s), int(from_s), int(to_s))
+                    if second != last_second and second[:16] == minute:  # a new second of this minute
+                        last_second, second_base = second, base + seconds[second[17:]]
+                    if second == last_second:
+                        t = second_base + float(frac if len(frac) == 7 else "." + nine(frac[1:]))
                         if t + tol < last_t:
                             timeline.last = last_t
                             timeline.check(t, self.src.where(number))
                         last_t = t
-                    else:
+                    else:  # a new minute
                         self._clocks(last_t)
-                        t = self._time(number, stamp[:10], f"{stamp[11:]}:{ss}", frac[1:])
+                        t = self._time(number, second[:10], second[11:], frac[1:])
                         minute, base = self.minute
                         last_t = timeline.last
-                    if row:
-                        number += 1
-                        data = known.get(row)
-                        if data is None:
-                            data = self._hex_row(row)
-                        if data:
-                            if len(data) == length:
-                                held, h_line = new(t, dirs[mark], data), number - 1
-                                continue
-                            cur = self.cur = _Transfer(number - 1, dirs[mark], t, length)
-                            cur.mode = _HEXMODE
-                            cur.data += data
-                            continue
-                        self.cur = _Transfer(number - 1, dirs[mark], t, length)
-                        texts = [row]  # no hex row: step reads it
-                    else:
+                    if not row:
                         self.cur = _Transfer(number, dirs[mark], t, length)
                         continue
-                elif held is not None and line[:2] == "--" and not continued and line.strip() == "--":
+                    number += 1
+                    data = known.get(row) or self._hex_row(row)
+                    if data:
+                        if len(data) == length:
+                            held = new(t, dirs[mark], data)  # its header's line: number - 1
+                            continue
+                        cur = self.cur = _Transfer(number - 1, dirs[mark], t, length)
+                        cur.mode = _HEXMODE
+                        cur.data += data
+                        continue
+                    self.cur = _Transfer(number - 1, dirs[mark], t, length)
+                    texts = [row.rstrip("\r")]  # no hex row: step reads it
+                elif held is not None and line[:2] == "--" and line.strip() == "--":
                     number += 1  # the end of a -x -v transfer held whole (as step's END would end it)
                     yield held
                     held = None
                     continue
-                elif line[:1] == " " and not continued and (held is not None or (cur := self.cur) is not None
-                                                            and cur.mode is not _TEXT):
+                elif line[:1] == " " and here and (held is not None or self.cur is not None):
                     number += 1  # a further hex row of the transfer
                     text = line.rstrip("\r")
-                    data = known.get(text)
-                    if data is None:
-                        data = self._hex_row(text)
+                    data = known.get(text) or self._hex_row(text)
                     if held is not None:
-                        self._hold(h_line, held)
+                        self._hold(number - 2, held)
                         held = None
                     cur = self.cur
                     assert cur is not None
@@ -331,13 +328,13 @@ class _Transfers:
                     continued = piece != ""
                     self.src.unterminated = number if continued else None
                     if mark:  # a header and its row (-v text being read, a line's last piece, another date)
-                        texts = [f"{mark} {stamp}:{ss}{frac}  length={length_s} from={from_s} to={to_s}"]
+                        texts = [f"{mark} {second}{frac}  length={length_s} from={from_s} to={to_s}"]
                         if row:
-                            texts.append(row)
+                            texts.append(row.rstrip("\r"))
                     else:
                         texts = [piece.rstrip("\r") if piece else line.rstrip("\r")]
                 if held is not None:  # the transfer held becomes the state step reads
-                    self._hold(h_line, held)
+                    self._hold(number - 2, held)
                     held = None
                 self._clocks(last_t)
                 for i, text in enumerate(texts):
@@ -347,8 +344,9 @@ class _Transfers:
                 number += len(texts) - 1
                 minute, base = self.minute
                 last_t = timeline.last
+                here = not continued and ((cur := self.cur) is None or cur.mode is not _TEXT)
         if held is not None:
-            self._hold(h_line, held)
+            self._hold(number - 1, held)
         self._clocks(last_t)
         if blocks.tail:  # the last line has no line end
             if not continued:
@@ -372,10 +370,13 @@ class _Transfers:
         cur.data += held.data
 
     def _size(self, text: str) -> int:
-        """``length=``'s number (remembered: a conversation's transfers have few lengths)."""
-        if len(self.sizes) >= _KNOWN:
-            self.sizes.clear()
-        size = self.sizes[text] = int(text)
+        """``length=``'s number (remembered when it is plausible, at most 16 MiB: a conversation's transfers
+        have few lengths)."""
+        size = int(text)
+        if size <= _MAX_TRANSFER:
+            if len(self.sizes) >= _KNOWN:
+                self.sizes.clear()
+            self.sizes[text] = size
         return size
 
     def _counters(self, number: int, mark: str, length: int, start: int, end: int) -> int:
