@@ -282,8 +282,8 @@ class Tally:
         self.bytes: Counter[str] = Counter()  # by direction, frames and junk
         self.codes: Counter[str] = Counter()
         self.by_side: dict[str, Counter[str]] = {"host": Counter(), "device": Counter()}
-        self.commands: Counter[str] = Counter()  # host frames by header ("?" unknown)
-        self.answers: Counter[str] = Counter()  # device frames by header
+        self.commands: dict[str, int] = {}  # host frames by header ("?" unknown)
+        self.answers: dict[str, int] = {}  # device frames by header
         self.latencies: dict[str, LatencyStats] = {}  # by command header
         self.line_errors = 0  # frame and junk records carrying a line error
         self.unanswered = 0  # commands still waiting at the end with no verdict (capture cut short)
@@ -307,14 +307,12 @@ class Tally:
     def count(self, seen: Iterable[Counted], line_errors: int = 0) -> None:
         """Count frames, junk runs, frames the data ended inside and missed answers (``Counted``), of which
         ``line_errors`` carry a line error on their bytes: commands by header, answers by header with their
-        latency by the command's header, violations by side. (One pass with locals, over plain lists and
-        dicts, whose operations are the interpreter's fast ones; the headers go to their ``Counter``s and
-        the latencies to their ``LatencyStats`` a batch at a time.)"""
-        headers = self._headers
+        latency by the command's header, violations by side. (One pass with locals, over plain dicts and
+        lists, whose operations are the interpreter's fast ones, a ``Counter``'s += is not; the latencies go
+        to their ``LatencyStats`` a batch at a time.)"""
+        commands, answers, headers = self.commands, self.answers, self._headers
         latencies: defaultdict[str, list[float]] = defaultdict(list)
         host_bytes = device_bytes = junk = 0
-        commands: list[str] = []  # the headers seen, counted in one C-level pass at the end
-        answers: list[str] = []
         for v in seen:
             kind = v.kind
             if v.violations:
@@ -322,13 +320,20 @@ class Tally:
             if kind == "host-frame":
                 host_bytes += len(v.raw)
                 header = v.header or "?"
-                commands.append(header)
+                if header in commands:
+                    commands[header] += 1
+                else:
+                    commands[header] = 1
                 headers[v.i] = header  # type: ignore[index]
                 if len(headers) > _MAX_WAITING:  # commands never answered: forget the oldest
                     del headers[next(iter(headers))]
             elif kind == "device-frame":
                 device_bytes += len(v.raw)
-                answers.append(v.header or "?")
+                header = v.header or "?"
+                if header in answers:
+                    answers[header] += 1
+                else:
+                    answers[header] = 1
                 reply_to = v.reply_to
                 if reply_to is not None:
                     command = headers.pop(reply_to, "?")
@@ -341,8 +346,6 @@ class Tally:
                 else:
                     device_bytes += len(v.raw)
                 junk += kind != "cut"
-        self.commands.update(commands)
-        self.answers.update(answers)
         self.bytes["host"] += host_bytes
         self.bytes["device"] += device_bytes
         self.junk_runs += junk
