@@ -123,12 +123,12 @@ def _reference_tally_add(self: records_mod.Tally, record: Record) -> None:
         header = record.header or "?"
         self.line_errors += bool(record.line_errors)
         if record.dir == "host":
-            self.commands[header] += 1
+            self.commands[header] = self.commands.get(header, 0) + 1  # (plain dicts now)
             self._headers[record.i] = header
             if len(self._headers) > records_mod._MAX_WAITING:
                 del self._headers[next(iter(self._headers))]
         else:
-            self.answers[header] += 1
+            self.answers[header] = self.answers.get(header, 0) + 1
             command = self._headers.pop(record.reply_to, "?") if record.reply_to is not None else "?"
             if record.reply_to is not None and record.latency_s is not None:
                 self.latencies.setdefault(command, records_mod.LatencyStats()).add(record.latency_s)
