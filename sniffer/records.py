@@ -320,20 +320,14 @@ class Tally:
             if kind == "host-frame":
                 host_bytes += len(v.raw)
                 header = v.header or "?"
-                if header in commands:
-                    commands[header] += 1
-                else:
-                    commands[header] = 1
+                commands[header] = commands.get(header, 0) + 1
                 headers[v.i] = header  # type: ignore[index]
                 if len(headers) > _MAX_WAITING:  # commands never answered: forget the oldest
                     del headers[next(iter(headers))]
             elif kind == "device-frame":
                 device_bytes += len(v.raw)
                 header = v.header or "?"
-                if header in answers:
-                    answers[header] += 1
-                else:
-                    answers[header] = 1
+                answers[header] = answers.get(header, 0) + 1
                 reply_to = v.reply_to
                 if reply_to is not None:
                     command = headers.pop(reply_to, "?")
