@@ -11,18 +11,27 @@ message goes to the process's own stderr, which pytest may have replaced.
 
 One policy a process: ``xac1 conformance`` installs one before pytest starts and the plugin takes that
 same one (``StopPolicy.shared``), so the first signal is the first whichever layer it lands in, and a
-second one 20 ms later is ignored even once pytest has ended. A raise can be swallowed where Python
-cannot pass an exception on: a garbage-collector callback (hypothesis keeps one), a ``__del__``, a
-weakref callback; Python then calls ``sys.unraisablehook``. The policy's hook recognises its own
-``Interrupted`` there, prints no traceback, and sends the same signal again from a helper thread, so it
-is raised once more where the run is (until ``ending()``); ``stopped_by`` keeps the first signal for
-the verdict whatever happened to the raise.
+second one 20 ms later is ignored even once pytest has ended.
+
+A raise can be swallowed where Python cannot pass an exception on, so the policy keeps it from being
+lost:
+- during a garbage collection (a gc callback such as hypothesis' own, a finalizer: an I/O object's
+  ``close`` run by the collector drops an exception without a word) the policy does not raise: its own
+  gc callback knows a collection is under way, and when it ends the signal is sent again from a helper
+  thread, so it is raised where the run is;
+- elsewhere (a ``__del__`` or weakref callback run by a reference count) Python calls
+  ``sys.unraisablehook``: the policy's hook recognises its own ``Interrupted``, prints no traceback,
+  and sends the same signal again.
+Both stop at ``ending()``. ``stopped_by`` keeps the first signal for the verdict whatever happened to
+the raise, and the plugin's ``raise_if_lost`` stops the run before the next check if a raise was still
+lost (a finalizer that drops exceptions, run by a reference count).
 """
 
 from __future__ import annotations
 
 import _thread
 import contextlib
+import gc
 import os
 import signal
 import sys
@@ -61,8 +70,11 @@ class StopPolicy:
         self._previous_unraisable: Any = None
         self._users = 0  # the takers of ``shared`` still holding it (each uninstalls once)
         self._raised: Interrupted | None = None  # the Interrupted last raised (to know it when swallowed)
-        self._again = False  # the raise was swallowed; the signal is on its way again
+        self._owed = False  # the first signal's Interrupted has not been raised where the run is yet
+        self._in_flight = 0  # the first signal, sent again by the policy, not handled yet
         self._in_hook = False  # inside ``_unraisable``
+        self._collecting = False  # a garbage collection is under way (a raise now would be lost)
+        self._deferred = False  # a signal came during that collection: send it again at its end
         self._ended = False
 
     @classmethod
@@ -95,6 +107,7 @@ class StopPolicy:
                 self._previous[sig] = signal.signal(sig, self._handle)
             self._previous_unraisable = sys.unraisablehook
             sys.unraisablehook = self._unraisable
+            gc.callbacks.append(self._gc_phase)
             _in_place.append(self)
         return self
 
@@ -106,6 +119,8 @@ class StopPolicy:
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         if self._previous:
             sys.unraisablehook = self._previous_unraisable
+            with contextlib.suppress(ValueError):
+                gc.callbacks.remove(self._gc_phase)
             if self in _in_place:
                 _in_place.remove(self)
         self._previous.clear()
@@ -123,13 +138,9 @@ class StopPolicy:
         return self._raised
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
-        if self._again and signum == self.signum:  # the first signal, sent again: raise where the run is
-            if self._in_hook:  # still inside the hook that sent it: a raise here would be lost too
-                self._send_again()
-                return
-            self._again = False
-            if not self._ended:
-                raise self._interrupt()
+        if self._in_flight and signum == self.signum:  # the first signal, sent again by the policy
+            self._in_flight -= 1
+            self._deliver()
             return
         if self.signum is not None:
             if self.signum == -1 and self.late is None:
@@ -138,13 +149,38 @@ class StopPolicy:
             return
         self.signum = signum
         _say(f"{self.program}: {signal_name(signum)}: {self.what}")
-        raise self._interrupt()
+        self._owed = True
+        self._deliver()
+
+    def _deliver(self) -> None:
+        """Raise the owed ``Interrupted`` here, unless a raise here would be lost: inside the hook that
+        sends the signal again (send it once more), or during a garbage collection (at its end)."""
+        if not self._owed or self._ended:
+            return
+        if self._in_hook:
+            self._send_again()
+        elif self._collecting:
+            self._deferred = True
+        else:
+            self._owed = False
+            raise self._interrupt()
+
+    def _gc_phase(self, phase: str, info: dict[str, int]) -> None:
+        """A gc callback: while a collection runs, a raise would land in a finalizer or another gc
+        callback and be lost; a signal that came meanwhile is sent again once it has ended."""
+        if phase == "start":
+            self._collecting = True
+            return
+        self._collecting = False
+        if self._deferred:
+            self._deferred = False
+            self._send_again()
 
     def raise_if_lost(self) -> None:
-        """Between two checks: a first signal came but its ``Interrupted`` never reached pytest (pytest's
-        own unraisable-exception catcher took it during a check): raise it now."""
+        """Between two checks: a first signal came but its ``Interrupted`` never reached pytest (a
+        finalizer run by a reference count dropped it during a check): raise it now."""
         if self.stopped_by is not None and not self._ended:
-            self._again = False
+            self._owed = False
             raise self._interrupt()
 
     def _send_again(self) -> None:
@@ -152,15 +188,16 @@ class StopPolicy:
         for it, and the signal could land inside that wait)."""
         if self._ended or self.signum is None or self.signum < 0:
             return
-        self._again = True
+        self._in_flight += 1
         _thread.start_new_thread(os.kill, (os.getpid(), self.signum))
 
     def _unraisable(self, info: Any) -> None:
-        """``sys.unraisablehook``: our ``Interrupted`` swallowed (a gc callback, a ``__del__``) is raised
-        again by sending the signal once more; anything else goes to the previous hook."""
+        """``sys.unraisablehook``: our ``Interrupted`` swallowed (a ``__del__``, a weakref callback) is
+        raised again by sending the signal once more; anything else goes to the previous hook."""
         if info.exc_value is None or info.exc_value is not self._raised:
             (self._previous_unraisable or sys.__unraisablehook__)(info)
             return
+        self._owed = True
         self._in_hook = True
         self._send_again()
         self._in_hook = False  # the last statement: nothing runs after it that could take the raise

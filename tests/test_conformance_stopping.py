@@ -10,11 +10,13 @@ sends the signals to its own process from a given hook, or from inside a gc call
 from __future__ import annotations
 
 import gc
+import io
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -72,6 +74,64 @@ def test_an_interrupt_swallowed_in_a_gc_callback_is_raised_again(capfd) -> None:
     assert fired and "Exception ignored" not in err and "Traceback" not in err
 
 
+class _Closer(io.RawIOBase):
+    """An I/O object whose ``close`` (Python code) the collector runs: CPython drops any exception it
+    raises there without a word (no ``sys.unraisablehook``)."""
+
+    def __init__(self, action: Callable[[], None]) -> None:
+        super().__init__()
+        self.action = action
+        self.me = self  # a cycle: only the collector frees it
+
+    def close(self) -> None:
+        if not self.closed:
+            self.action()
+        super().close()
+
+
+@pytest.mark.parametrize("first", [True, False], ids=["first signal", "signal sent again"])
+def test_an_interrupt_landing_in_a_finalizer_during_a_collection_is_raised_after_it(
+    first: bool, capfd
+) -> None:
+    """A signal whose handler would run inside a finalizer of a garbage collection (the first one, or
+    the one sent again after a gc callback swallowed the raise): it is raised once the collection has
+    ended, where the code runs (was: ``io``'s finalizer dropped the ``Interrupted`` silently and the
+    signal was lost)."""
+    fired: list[int] = []
+
+    def kill() -> None:
+        if not fired:
+            fired.append(1)
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.05)  # the handler runs here, inside the finalizer (or the helper's signal lands)
+
+    def in_gc(phase: str, info: dict) -> None:
+        if phase == "start" and not fired:
+            fired.append(1)
+            os.kill(os.getpid(), signal.SIGTERM)  # swallowed here: the policy sends it again
+
+    callbacks = list(gc.callbacks)
+    policy = StopPolicy("xac1 conformance").install()
+    if not first:
+        gc.callbacks.append(in_gc)
+    try:
+        with pytest.raises(Interrupted) as caught:
+            for _ in range(50):
+                _Closer(kill if first else lambda: time.sleep(0.002))
+            gc.collect()
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:
+                time.sleep(0.01)
+        assert caught.value.name == "SIGTERM" and policy.stopped_by == "SIGTERM"
+    finally:
+        if not first:
+            gc.callbacks.remove(in_gc)
+        policy.uninstall()
+    assert gc.callbacks == callbacks  # the policy's own callback went with it
+    err = capfd.readouterr().err
+    assert fired and "Exception ignored" not in err and "Traceback" not in err
+
+
 # ---- the real command ----
 
 GC_SIGNAL = '''
@@ -99,12 +159,31 @@ def pytest_runtest_teardown(item, nextitem):
     if nextitem is None:
         send_in_gc()
 ''',
-    # during the first check, inside a gc callback
+    # during the first check, inside a gc callback; the check goes on for 30 s unless interrupted
     "first_check": GC_SIGNAL + '''
+import time
+
 def pytest_runtest_call(item):
     if not getattr(pytest_runtest_call, "done", False):
         pytest_runtest_call.done = True
         send_in_gc()
+        time.sleep(30)
+''',
+    # during the first check, inside an I/O object's close that its reference count runs as a finalizer
+    # (CPython drops an exception raised there without a word: no hook sees it)
+    "finalizer_in_check": '''
+import io, os, signal
+
+class Closer(io.RawIOBase):
+    def close(self):
+        if not self.closed:
+            os.kill(os.getpid(), signal.SIGTERM)  # its handler runs here
+        super().close()
+
+def pytest_runtest_call(item):
+    if not getattr(pytest_runtest_call, "done", False):
+        pytest_runtest_call.done = True
+        Closer()  # freed at once
 ''',
     # once pytest has ended (after every unconfigure hook), inside a gc callback
     "after_pytest": GC_SIGNAL + '''
@@ -144,11 +223,25 @@ def test_signal_in_a_gc_callback_during_the_last_check_interrupts_the_run(tmp_pa
 
 
 @pytest.mark.slow
-def test_signal_in_a_gc_callback_during_a_check_stops_the_run_there(tmp_path: Path) -> None:
-    """SIGTERM raised inside a gc callback during the first check (where pytest's own catcher of
-    unraisable exceptions takes it): the run stops before the next check, exit 2, the verdict names
-    SIGTERM (was: every other check still ran)."""
+def test_signal_in_a_gc_callback_during_a_check_stops_the_run_in_it(tmp_path: Path) -> None:
+    """SIGTERM raised inside a gc callback during the first check: it is raised again once the
+    collection has ended, in that check (which would go on for 30 s): no check passes, exit 2, the
+    verdict names SIGTERM, no second signal is reported (was: the check ran to its end)."""
+    started = time.monotonic()
     done = run_with("first_check", tmp_path)
+    assert time.monotonic() - started < 25, "the check was not interrupted"
+    assert done.returncode == 2, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "INCOMPLETE: 98 of 98 checks not run" in verdict(done) and "passed" not in done.stdout
+    assert "interrupted by SIGTERM" in verdict(done) and "Traceback" not in done.stderr
+    assert "ignored" not in done.stderr and "Exception ignored" not in done.stdout
+
+
+@pytest.mark.slow
+def test_signal_whose_raise_a_finalizer_dropped_stops_the_run_before_the_next_check(tmp_path: Path) -> None:
+    """SIGTERM whose ``Interrupted`` an I/O object's finalizer drops without a word during the first
+    check: that check ends, the run stops before the next one, exit 2, the verdict names SIGTERM (was:
+    every other check still ran)."""
+    done = run_with("finalizer_in_check", tmp_path)
     assert done.returncode == 2, done.stdout[-2000:] + done.stderr[-2000:]
     assert "framing of answers: 1 passed, 10 not run" in done.stdout
     assert "interrupted by SIGTERM" in verdict(done) and "Traceback" not in done.stderr
