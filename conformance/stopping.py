@@ -71,7 +71,9 @@ class StopPolicy:
         self._users = 0  # the takers of ``shared`` still holding it (each uninstalls once)
         self._raised: Interrupted | None = None  # the Interrupted last raised (to know it when swallowed)
         self._owed = False  # the first signal's Interrupted has not been raised where the run is yet
-        self._in_flight = 0  # the first signal, sent again by the policy, not handled yet
+        # the first signal, sent again by the policy and not handled yet: one item each (a list, as its
+        # ``append`` and ``pop`` are atomic: a collection in another thread may send one)
+        self._in_flight: list[None] = []
         self._in_hook = False  # inside ``_unraisable``
         self._collecting = False  # a garbage collection is under way (a raise now would be lost)
         self._deferred = False  # a signal came during that collection: send it again at its end
@@ -139,7 +141,7 @@ class StopPolicy:
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         if self._in_flight and signum == self.signum:  # the first signal, sent again by the policy
-            self._in_flight -= 1
+            self._in_flight.pop()
             self._deliver()
             return
         if self.signum is not None:
@@ -188,7 +190,7 @@ class StopPolicy:
         for it, and the signal could land inside that wait)."""
         if self._ended or self.signum is None or self.signum < 0:
             return
-        self._in_flight += 1
+        self._in_flight.append(None)
         _thread.start_new_thread(os.kill, (os.getpid(), self.signum))
 
     def _unraisable(self, info: Any) -> None:
