@@ -306,14 +306,16 @@ _V_SAFE = st.binary(min_size=1, max_size=40).map(lambda b: bytes(_V_BYTES[x % le
 @st.composite
 def clean_dumps(draw: st.DrawFn) -> tuple[str, list[tuple[str, bytes, float]], bool]:
     """(a socat log, the transfers it holds as (side, bytes, time), whether it has -v text): times in
-    order, counters that go on, each transfer -x, -x -v or -v (bytes -v shows exactly)."""
+    order, counters that go on; a log of hex rows (each transfer -x or -x -v), or of -v text (bytes -v
+    shows exactly), as socat dumps a run in one style."""
     date = draw(st.sampled_from(["2024/05/01", "2026/11/22", "2038/01/19"]))
     second = draw(st.integers(0, 80000))
     count = {">": 0, "<": 0}
     out, want, v = [], [], False
+    styles = draw(st.sampled_from([["x", "x", "xv"], ["x", "x", "xv"], ["v"]]))
     for _ in range(draw(st.integers(1, 12))):
         side = draw(st.sampled_from("><"))
-        style = draw(st.sampled_from(["x", "x", "xv", "v"]))
+        style = draw(st.sampled_from(styles))
         data = draw(_V_SAFE if style == "v" else st.one_of(st.sampled_from(FRAMES[:6]), st.binary(min_size=1,
                                                                                                   max_size=70)))
         second += draw(st.sampled_from([0, 0, 1, 59, 3600]))
@@ -586,3 +588,67 @@ def test_line_ends_mixed_anyhow_read_the_same(dump: tuple[str, list[tuple[str, b
     assert [(e[1], e[2], e[0]) for e in events] == [
         ("host" if side == ">" else "device", data, _bits(t)) for side, data, t in want]
     assert report["problems"] == [] and end[0] == "end"
+
+
+# -v text that looks like hex rows: digits in pairs after a space, LF between lines
+_HEXLIKE_LINE = st.lists(st.integers(0, 99), min_size=1, max_size=5).map(
+    lambda ns: " " + " ".join(f"{n:02d}" for n in ns))
+_HEXLIKE_TEXT = st.tuples(st.lists(st.one_of(_HEXLIKE_LINE, st.just(""), st.just("0RV")), min_size=1,
+                                   max_size=4).filter(lambda rows: rows[0] != ""),
+                          st.booleans()).map(lambda r: ("\n".join(r[0]) + ("\n" if r[1] else "")).encode())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from("><"), st.one_of(_HEXLIKE_TEXT, st.sampled_from(FRAMES[:4]))),
+                min_size=1, max_size=5), st.booleans())
+def test_v_text_that_looks_like_hex_rows_is_read_as_text(transfers: list[tuple[str, bytes]],
+                                                         last_newline: bool) -> None:
+    """A -v log whose text looks like hex rows (`` 00`` is three bytes as text, one as hex): the reading
+    that fits ``length=`` is the text one, so each transfer is its bytes and nothing is reported, the
+    file's last line ended or not (was: read as a short hex dump and reported cut short)."""
+    count = {">": 0, "<": 0}
+    out = []
+    for k, (side, data) in enumerate(transfers):
+        out.append(f"{side} 2024/05/01 10:00:{k:02d}.000001  length={len(data)} from={count[side]} "
+                   f"to={count[side] + len(data) - 1}\n")
+        out.append(_v_text(data) + ("" if data.endswith(b"\n") else "\n"))
+        count[side] += len(data)
+    text = "".join(out)
+    if not last_newline and not transfers[-1][1].endswith(b"\n"):
+        text = text[:-1]  # socat -v ends text without an LF with nothing
+    events, end, report = read_any_block(text, (socat_mod.BLOCK, 61))
+    assert [(e[1], e[2]) for e in events] == [("host" if side == ">" else "device", data)
+                                              for side, data in transfers]
+    assert report["problems"] == [] and end[0] == "end" and end[1] is None
+
+
+@pytest.mark.parametrize("style", ["x", "xv"])
+@pytest.mark.parametrize("then", ["a header", "the end of the file", "the end of a line at the end"])
+def test_a_hex_row_cut_where_its_text_would_fit_is_reported_in_a_log_of_hex_rows(style: str,
+                                                                                   then: str) -> None:
+    """A log of hex rows whose row is cut where its text would be ``length=`` characters (`` 30 4d`` of
+    the six bytes ``0MP0\\r\\n``, a crash in the middle of a line): the log has shown hex rows, so it is a
+    dump cut short, reported with the bytes it holds, never read as -v text."""
+    first = b"0RV\r\n"
+    rows = [" " + first.hex(" ") + "\n"] if style == "x" else [*_hex_rows(first), "--\n"]
+    text = ("> 2024/05/01 10:00:00.000001  length=5 from=0 to=4\n" + "".join(rows)
+            + "> 2024/05/01 10:00:01.000001  length=6 from=5 to=10\n 30 4d")
+    text += {"a header": "\n< 2024/05/01 10:00:02.000001  length=1 from=0 to=0\n 30\n",
+             "the end of the file": "", "the end of a line at the end": "\n"}[then]
+    events, end, report = read_any_block(text, (socat_mod.BLOCK, 61))
+    assert [e[2] for e in events][:2] == [first, b"0M"]
+    assert "transfer says length=6 but its dump holds 2 byte(s)" in report["problems"][0]
+    assert len(report["problems"]) == (2 if then == "the end of the file" else 1)  # and the line cut
+
+
+@pytest.mark.parametrize("last", ["0RV", "0RV100\\r", " 00"])
+def test_a_v_log_whose_last_text_has_no_line_end_is_whole(last: str) -> None:
+    """socat -v ends text that has no LF with nothing, so a whole log's last line may have no line end:
+    ``length=`` says the text is whole, and nothing is reported (was: "the file ends in the middle of
+    this line", a complete capture called cut short)."""
+    data = last.replace("\\r", "\r").encode()
+    text = ("> 2024/05/01 10:00:00.000001  length=5 from=0 to=4\n0RV\\r\n"
+            f"< 2024/05/01 10:00:00.010001  length={len(data)} from=0 to={len(data) - 1}\n{last}")
+    events, end, report = read_any_block(text, (socat_mod.BLOCK, 61))
+    assert [e[2] for e in events] == [b"0RV\r\n", data]
+    assert report["problems"] == [] and end == ("end", None, len(text))

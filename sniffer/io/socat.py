@@ -6,7 +6,10 @@ to=5`` (``>``: data from socat's first address to its second, ``<``: back). Then
 - ``-x -v``: hex lines of up to 16 bytes with an ASCII column, split after each LF, ending with ``--``;
 - ``-v``: the bytes as text (``\\r``, ``\\\\``, ``\\a\\b\\v\\f`` escaped, LF as a line end, other
   unprintable bytes as ``.``), not ended by a newline, so the next header may follow on the same line.
-  ``length=`` says where the text ends. ``.`` stands for any unprintable byte, so ``-v`` alone is lossy.
+  ``length=`` says where the text ends, so the file's last line may have no line end. ``.`` stands for
+  any unprintable byte, so ``-v`` alone is lossy. Text may look like hex rows (`` 00`` is three bytes as
+  text, one as hex): rows too short for ``length=`` whose text reading fits it are text, in a log that
+  has not shown a transfer of hex rows (socat dumps a run in one style; there a short row is damage).
 Some socat releases (1.7.x) print the fraction of a second as nine digits of which the first three are
 ``000`` and the last six the microseconds (``08.000428215`` is 08.428215 s); a file whose fractions all
 start with ``000`` is read that way, the first other nine-digit fraction switches to nanoseconds.
@@ -73,6 +76,7 @@ _ESCAPES: Final = {"r": 0x0D, "n": 0x0A, "\\": 0x5C, "a": 0x07, "b": 0x08, "v": 
                    "t": 0x09, "e": 0x1B}
 _KNOWN: Final = 4096  # hex rows remembered (their text -> their bytes)
 _KNOWN_TEXT: Final = 160  # characters of the longest row remembered
+_TEXT_ROWS: Final = 256  # the longest transfer whose hex rows are kept in case they were -v text
 _TEXT: Final = "text"  # a transfer's mode: -v text (None: not known yet; "hex": hex rows)
 _HEXMODE: Final = "hex"
 
@@ -181,7 +185,7 @@ class _Transfer:
     """The transfer being read: its header's line, direction, time and ``length=``, its bytes held (not
     handed on yet), how many were handed on, and its mode (None until its first data line)."""
 
-    __slots__ = ("line", "dir", "t", "length", "data", "sent", "mode")
+    __slots__ = ("line", "dir", "t", "length", "data", "sent", "mode", "rows")
 
     def __init__(self, line: int, d: Direction, t: float | None, length: int) -> None:
         self.line = line
@@ -191,6 +195,18 @@ class _Transfer:
         self.data = bytearray()
         self.sent = 0
         self.mode: str | None = None
+        self.rows: list[str] | None = None  # its hex rows' text, while they may be -v text instead
+
+    def add_hex_row(self, text: str, data: bytes) -> None:
+        """A hex row's bytes. Its text is kept while every line of the transfer has been one and the
+        transfer is short: -v text may look like hex rows (`` 00`` is three bytes as text, one as hex),
+        and ``length=`` decides at its end (``_text_reading``)."""
+        if self.mode is None and self.length <= _TEXT_ROWS:
+            self.rows = [text]
+        elif self.rows is not None:
+            self.rows.append(text)
+        self.mode = _HEXMODE
+        self.data += data
 
     @property
     def got(self) -> int:
@@ -227,6 +243,8 @@ class _Transfers:
         self.timeline = Timeline(src.report)
         self.cur: _Transfer | None = None  # the transfer being read
         self.text_bytes = 0
+        self.text_ended = 0  # the last line on which -v text ended a transfer with the line itself
+        self.hex_seen = False  # a transfer's hex rows held its length= bytes: the log dumps hex rows
         self.following: dict[str, int] = {}  # side name -> the from= its next transfer should have
         # the last header's ``YYYY/MM/DD HH:MM`` and its start (``wallclock``): seconds in a minute are
         # linear (time zones change their offset on whole minutes)
@@ -253,6 +271,7 @@ class _Transfers:
         held: Chunk | None = None  # a whole transfer read here, handed on at the next header (its header's
         # line is the one before its row's: ``number - 1`` until the next line is numbered, then ``- 2``)
         number, continued = 0, False  # the last line's number; whether its last piece had no line end
+        hex_seen = self.hex_seen
         here = True  # lines are read here (no piece of a long line going on, no -v text being read)
         last_t = timeline.last  # the time of the last header read here (times.last too, when it was one)
         t: float | None
@@ -294,10 +313,11 @@ class _Transfers:
                     if data:
                         if len(data) == length:
                             held = new(t, dirs[mark], data)  # its header's line: number - 1
+                            if not hex_seen:
+                                hex_seen = self.hex_seen = True
                             continue
                         cur = self.cur = _Transfer(number - 1, dirs[mark], t, length)
-                        cur.mode = _HEXMODE
-                        cur.data += data
+                        cur.add_hex_row(row.rstrip("\r"), data)
                         continue
                     self.cur = _Transfer(number - 1, dirs[mark], t, length)
                     texts = [row.rstrip("\r")]  # no hex row: step reads it
@@ -316,8 +336,7 @@ class _Transfers:
                     cur = self.cur
                     assert cur is not None
                     if data:
-                        cur.mode = _HEXMODE
-                        cur.data += data
+                        cur.add_hex_row(text, data)
                         if len(cur.data) >= _SPILL and (chunk := cur.spill()) is not None:
                             yield chunk
                         continue
@@ -419,7 +438,10 @@ class _Transfers:
         rec, self.cur = self.cur, None
         if rec is None:
             return None
+        self._rows_as_text(rec, whole=True)
         got = rec.sent + len(rec.data)
+        if got == rec.length and rec.mode is _HEXMODE:
+            self.hex_seen = True
         if got != rec.length:
             self.report.problem(self.src.where(rec.line),
                                 f"transfer says length={rec.length} but its dump holds {got} "
@@ -445,7 +467,7 @@ class _Transfers:
             if chunk is not None:
                 yield chunk
         elif kind == BLANK:
-            if cur is not None and cur.mode is None:
+            if cur is not None and (cur.mode is None or self._rows_as_text(cur, whole=False)):
                 cur.mode = _TEXT
                 return text
         elif cur is None:
@@ -453,14 +475,14 @@ class _Transfers:
                                                         f"{shown(text)}", nlines=1)
         elif kind == HEXROW and cur.mode in (None, _HEXMODE):
             assert m is not None
-            cur.mode = _HEXMODE
-            cur.data.extend(bytes.fromhex(m.group(1)))
+            cur.add_hex_row(text, bytes.fromhex(m.group(1)))
             if (chunk := cur.spill()) is not None:
                 yield chunk
-        elif cur.mode is None:
+        elif cur.mode is None or self._rows_as_text(cur, whole=False):
             cur.mode = _TEXT
             return text
         else:
+            cur.rows = None  # (rows followed by a line that is neither a row nor their text: damage)
             self.report.problem(self.src.where(number), f"cannot read this dump line: {shown(text)}",
                                 nlines=1)
         return None
@@ -480,7 +502,23 @@ class _Transfers:
             return None
         if (chunk := self.finish(number)) is not None:
             yield chunk
+        if cut == len(text):
+            self.text_ended = number
         return text[cut:] or None
+
+    def _rows_as_text(self, cur: _Transfer, whole: bool) -> bool:
+        """Hex rows too short for ``length=`` that read as -v text fitting it (``whole``: exactly, the
+        transfer has ended; else with bytes still to come, a line that is no hex row follows), in a log
+        that has not shown a transfer of hex rows yet (socat dumps a run in one style): they were text,
+        and the transfer is text from now on (True)."""
+        if cur.rows is None or cur.mode is not _HEXMODE or cur.got >= cur.length or self.hex_seen:
+            return False  # (in a log of hex rows a short one is damage: a row cut short)
+        text = _text_reading(cur.rows, cur.length, whole)
+        if text is None:
+            return False
+        self.text_bytes += len(text)
+        cur.data[:], cur.rows, cur.mode = text, None, _TEXT
+        return True
 
     def _header(self, number: int, m: re.Match[str]) -> None:
         """A transfer's header: its counters, length and time checked; it becomes the transfer read."""
@@ -532,7 +570,8 @@ class _Transfers:
 
     def end(self, number: int) -> Iterator[Chunk]:
         cur = self.cur
-        if cur is not None and cur.mode == _TEXT and cur.got == cur.length:
+        if self.text_ended == number or cur is not None and \
+                (self._rows_as_text(cur, whole=True) or cur.mode == _TEXT) and cur.got == cur.length:
             self.src.unterminated = None  # -v text need not end with a newline: length= says it is whole
         if (chunk := self.finish(number)) is not None:
             yield chunk
@@ -560,6 +599,22 @@ def _check_counters(side: str, length: int, start: int, end: int, following: dic
             report.problem(where, f"from={start} repeats bytes of the {side!r} side (the previous "
                                   f"transfer ended at to={following[side] - 1}): the log is damaged")
     following[side] = start + length
+
+
+def _text_reading(rows: list[str], length: int, whole: bool) -> bytearray | None:
+    """Whole dump lines read as -v text (each line end an LF byte while bytes are missing, as ``_text``
+    reads them), when that reading fits ``length=``: exactly (``whole``: the transfer ended), or with
+    bytes still to come (another line of it follows). None when it does not fit."""
+    probe = _Transfer(0, "host", None, length)
+    for k, row in enumerate(rows):
+        _, used = _take_text(row, probe)
+        if used != len(row):
+            return None
+        if probe.got < length:
+            probe.data.append(0x0A)  # the line end was an LF byte
+        if probe.got == length:
+            return probe.data if whole and k == len(rows) - 1 else None
+    return None if whole else probe.data
 
 
 def _take_text(text: str, rec: _Transfer) -> tuple[int, int]:
