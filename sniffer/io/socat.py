@@ -570,8 +570,9 @@ class _Transfers:
 
     def end(self, number: int) -> Iterator[Chunk]:
         cur = self.cur
-        if self.text_ended == number or cur is not None and \
-                (self._rows_as_text(cur, whole=True) or cur.mode == _TEXT) and cur.got == cur.length:
+        if cur is not None:
+            self._rows_as_text(cur, whole=True)  # rows that are the text length= says is whole
+        if self.text_ended == number or cur is not None and cur.mode == _TEXT and cur.got == cur.length:
             self.src.unterminated = None  # -v text need not end with a newline: length= says it is whole
         if (chunk := self.finish(number)) is not None:
             yield chunk
