@@ -75,7 +75,6 @@ from . import motion, spec
 from .codec import header_of, read_frame, show_bytes
 from .errors import Violation
 from .frames import (
-    AlarmAnswer,
     Frame,
     MoveDirect,
     MovePoint,
@@ -384,24 +383,26 @@ class Conversation:
                    window: float | None = None) -> list[Verdict]:
         """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
         for its answer, when it says so (the client); else the engine's answer window."""
-        if t_first is not None and self._queue:  # lines wait: their windows may have closed
-            out = self.tick(t_first, self._answer_since)
-        else:  # (the usual command: nothing waits, so time passing closes no window)
+        if t_first is None:
             out = []
-            if t_first is not None and (self._last_t is None or t_first > self._last_t):
+        elif self._queue:  # lines wait: their windows may have closed
+            out = self.tick(t_first, self._answer_since)
+        else:  # the usual command: nothing waits, so time passing closes no window
+            out = []
+            if self._last_t is None or t_first > self._last_t:
                 self._last_t = t_first
         i = self._next_i
         self._next_i = i + 1
-        raw = raw if type(raw) is bytes else bytes(raw)
+        if type(raw) is not bytes:
+            raw = bytes(raw)
         frame, violations, header, error = read_frame(raw, spec.COMMAND)
         found = [*violations]
         if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
             found += self._host_duties(header, error)
-        line = self._enqueue(i, _ERROR if error else _COMMAND, header, None if error else frame,
-                             t_last, found, window, not violations)
-        if line.is_move and self.knowledge.latched.value is None and self._motion is None \
-                and line.kind == _COMMAND and not line.overlapped:
-            self._motion = line
+        if error:
+            line = self._enqueue(i, _ERROR, header, None, t_last, found, window)
+        else:
+            line = self._enqueue(i, _COMMAND, header, frame, t_last, found, window, not violations)
         out.append(_verdict(("host-frame", HOST, i, raw, header, frame, tuple(found), None, None, t_first,
                              t_last, line.waited_s)))
         return out
@@ -422,26 +423,36 @@ class Conversation:
 
     def device_frame(self, raw: bytes, t_first: float | None = None,
                      t_last: float | None = None) -> list[Verdict]:
-        """A frame-shaped device line: an answer."""
-        out = [] if t_first is None else self.tick(t_first, t_first)
+        """A frame-shaped device line: an answer. Its arrival passes time to ``t_first``: lines whose
+        window closed before it began get ``no-answer`` (``tick``; an answer in time is in time)."""
+        queue = self._queue
+        out: list[Verdict] = []
+        if t_first is not None:
+            if self._last_t is None or t_first > self._last_t:
+                self._last_t = t_first
+            if queue and ((deadline := queue[0].deadline) is None or deadline < t_first):
+                self._answer_since = t_first
+                out = self._expire(t_first)
         self._answer_since = None
         i = self._next_i
         self._next_i = i + 1
-        raw = raw if type(raw) is bytes else bytes(raw)
+        if type(raw) is not bytes:
+            raw = bytes(raw)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
         found = [*violations]
         line, skipped = self._pair(header, t_first)
         if skipped:
             out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
-        latency = None
         if line is None:
             found.append(_v("unsolicited-answer", f"{header or 'this'} answer with no command waiting "
                             f"for it", _CODES))
-        elif line.t_last is not None and t_first is not None:
-            latency = t_first - line.t_last
+            reply_to = latency = None
+        else:
+            reply_to = line.i
+            latency = None if line.t_last is None or t_first is None else t_first - line.t_last
         self._judge_answer(line, header, frame, found)
-        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found),
-                             None if line is None else line.i, latency, t_first, t_last, None)))
+        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), reply_to, latency,
+                             t_first, t_last, None)))
         return out
 
     def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -552,61 +563,77 @@ class Conversation:
 
     def _enqueue(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  found: list[Violation], window: float | None = None, plain: bool = False) -> _Line:
-        """Queue a host line, judging when it was sent (docs/protocol.md "Framing": strict request/answer)."""
+        """Queue a host line, judging when it was sent (docs/protocol.md "Framing": strict request/answer);
+        a well-formed move sent while nothing is latched is the move under way."""
         overlapped = False
-        what = header or "this line"
-        if self._motion is not None:
-            kind = _DISCARD
-            found.append(_v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
-                            f"waits for its answer"))
-        elif self._queue:
-            first = next((w for w in self._queue if w.owed), None)
-            if first is not None:
-                overlapped = True
-                detail = f"{what} sent before the answer to {first.name()}"
-                if first.t_last is None and t_last is None:
-                    detail += (f"; the capture has no time, so this looks the same as {first.name()} left "
-                               f"unanswered and the host going on after waiting (no-answer)")
-                found.append(_v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
-        is_move = kind == _COMMAND and header in spec.MOVE_HEADERS and frame is not None
-        if window is not None:
-            waited = window
-        elif is_move and frame is not None:
-            waited = self.answer_window(frame)
-        else:
-            waited = self.no_answer_timeout
-        line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + waited, waited,
+        if self._motion is not None or self._queue:
+            kind, overlapped = self._sent_while_waiting(kind, header, t_last, found)
+        is_move = kind == _COMMAND and header in spec.MOVE_HEADERS
+        if window is None:
+            window = self.answer_window(frame) if is_move and frame is not None else self.no_answer_timeout
+        line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + window, window,
                      overlapped, is_move, plain)
         self._queue.append(line)
+        if is_move and not overlapped and self.knowledge.latched.value is None:
+            self._motion = line
         return line
 
+    def _sent_while_waiting(self, kind: str, header: str | None, t_last: float | None,
+                            found: list[Violation]) -> tuple[str, bool]:
+        """A host line sent while a move's answer or another line's is awaited: its kind (discarded during
+        a move) and whether it overlaps a line owed an answer."""
+        what = header or "this line"
+        if self._motion is not None:
+            found.append(_v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
+                            f"waits for its answer"))
+            return _DISCARD, False
+        first = next((w for w in self._queue if w.owed), None)
+        if first is None:
+            return kind, False
+        detail = f"{what} sent before the answer to {first.name()}"
+        if first.t_last is None and t_last is None:
+            detail += (f"; the capture has no time, so this looks the same as {first.name()} left "
+                       f"unanswered and the host going on after waiting (no-answer)")
+        found.append(_v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
+        return kind, True
+
     def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line] | tuple[()]]:
-        """The line an answer belongs to, and the lines it shows were skipped (module docstring)."""
+        """The line an answer belongs to, and the lines it shows were skipped (module docstring). The
+        usual answer: to the head of the queue, of its header, nothing skipped."""
         queue = self._queue
-        if not queue:
-            return None, []
+        if queue:
+            head = queue[0]
+            if header == head.header and header is not None and header != _ALARM \
+                    and (t is None or head.t_last is None or head.t_last <= t) \
+                    and (head.kind != _DISCARD or len(queue) == 1):
+                queue.popleft()
+                if self._motion is head:
+                    self._motion = None
+                return head, _NOTHING_SKIPPED
+        return self._pair_past(header, t)
+
+    def _pair_past(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line]]:
+        """``_pair`` when the answer is not the head's: the first line of its header sent before the
+        answer began, else the first line not discarded during a move (an alarm answer fits any line; a
+        discarded line only when it alone waits and the answer fits it); the lines before it were skipped."""
+        queue = self._queue
         chosen: _Line | None = None
-        if header is not None and header != spec.ALARM_HEADER:
+        if header is not None and header != _ALARM:
             alone = len(queue) == 1
-            for w in queue:  # the first line of its header sent before the answer began
+            for w in queue:
                 if w.header == header and (t is None or w.t_last is None or w.t_last <= t) \
                         and (alone or w.kind != _DISCARD):
                     chosen = w
                     break
-        if chosen is not None and chosen is queue[0]:  # the usual answer: to the head, nothing skipped
-            queue.popleft()
-            if self._motion is chosen:
-                self._motion = None
-            return chosen, _NOTHING_SKIPPED
         if chosen is None:
-            for w in self._queue:
-                fits = header == spec.ALARM_HEADER or (w.header is not None and w.header == header)
-                if w.kind != _DISCARD or (fits and len(self._queue) == 1):
+            for w in queue:
+                fits = header == _ALARM or (w.header is not None and w.header == header)
+                if w.kind != _DISCARD or (fits and len(queue) == 1):
                     chosen = w
                     break
         skipped: list[_Line] = []
-        while self._queue:
-            w = self._queue.popleft()
+        while queue:
+            w = queue.popleft()
             self._end_motion(w)
             if w is chosen:
                 return w, skipped
@@ -680,18 +707,24 @@ class Conversation:
 
     def _judge_answer(self, line: _Line | None, header: str | None, frame: Frame | None,
                       found: list[Violation]) -> None:
-        if isinstance(frame, AlarmAnswer):
-            self._storm(header, frame)
-            self._alarm(line, frame.code, found)
+        # the storm run (host duty): ``0%%01`` answers count, the reset answer neither counts nor ends
+        # it, any other answer ends it, a faulty one too; an unreadable line (or alarm code) does neither
+        k = self.knowledge
+        if header == _ALARM:
+            if frame is not None:
+                code = frame.code  # type: ignore[attr-defined]
+                k.storm_run = k.storm_run + 1 if code == spec.ALARM_COMM else 0
+                self._alarm(line, code, found)
+            elif line is not None:
+                self._outcome_unknown(line)
             return
-        if header is None:  # unreadable: it neither counts nor ends the storm run
+        if header is None:
             if line is not None:
                 self._outcome_unknown(line)
             return
-        k = self.knowledge
-        if header != _RESET and header != _ALARM:
-            k.storm_run = 0  # any other answer ends the storm run (``_storm``), a faulty one too
-        if frame is None or header == _ALARM or line is None:  # (unsolicited: nothing it says is trusted)
+        if header != _RESET:
+            k.storm_run = 0
+        if frame is None or line is None:  # (unsolicited: nothing it says is trusted)
             if line is not None:
                 self._outcome_unknown(line)
             return
@@ -714,15 +747,6 @@ class Conversation:
                 learn(self, command, frame, found)
         else:
             self._outcome_unknown(line)
-
-    def _storm(self, header: str | None, frame: Frame | None) -> None:
-        """The storm run (host duty): ``0%%01`` answers count, the reset answer neither counts nor ends
-        it, any other answer (even with a framing fault) ends it. An unreadable line does neither."""
-        k = self.knowledge
-        if isinstance(frame, AlarmAnswer):
-            k.storm_run = k.storm_run + 1 if frame.code == spec.ALARM_COMM else 0
-        elif header is not None and header not in (spec.ALARM_HEADER, spec.RESET_HEADER):
-            k.storm_run = 0
 
     def _alarm(self, line: _Line | None, code: int, found: list[Violation]) -> None:
         """An alarm answer: it latches (00 latches nothing, silent item 12); a latched code never changes
