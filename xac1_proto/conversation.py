@@ -430,6 +430,7 @@ class Conversation:
         if t_first is not None:
             if self._last_t is None or t_first > self._last_t:
                 self._last_t = t_first
+            # (``_expire`` decides; while the head's window is open at the answer's start, nothing closes)
             if queue and ((deadline := queue[0].deadline) is None or deadline < t_first):
                 self._answer_since = t_first
                 out = self._expire(t_first)
@@ -598,33 +599,30 @@ class Conversation:
         return kind, True
 
     def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line] | tuple[()]]:
-        """The line an answer belongs to, and the lines it shows were skipped (module docstring). The
-        usual answer: to the head of the queue, of its header, nothing skipped."""
-        queue = self._queue
-        if queue:
-            head = queue[0]
-            if header == head.header and header is not None and header != _ALARM \
-                    and (t is None or head.t_last is None or head.t_last <= t) \
-                    and (head.kind != _DISCARD or len(queue) == 1):
-                queue.popleft()
-                if self._motion is head:
-                    self._motion = None
-                return head, _NOTHING_SKIPPED
-        return self._pair_past(header, t)
-
-    def _pair_past(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line]]:
-        """``_pair`` when the answer is not the head's: the first line of its header sent before the
-        answer began, else the first line not discarded during a move (an alarm answer fits any line; a
-        discarded line only when it alone waits and the answer fits it); the lines before it were skipped."""
+        """The line an answer belongs to, and the lines it shows were skipped (module docstring): the
+        first line of its header sent before the answer began (a line discarded during a move only when
+        it alone waits); the usual answer is the head's, nothing skipped."""
         queue = self._queue
         chosen: _Line | None = None
-        if header is not None and header != _ALARM:
+        if queue and header is not None and header != _ALARM:
             alone = len(queue) == 1
             for w in queue:
                 if w.header == header and (t is None or w.t_last is None or w.t_last <= t) \
                         and (alone or w.kind != _DISCARD):
                     chosen = w
                     break
+            if chosen is queue[0]:
+                queue.popleft()
+                if self._motion is chosen:
+                    self._motion = None
+                return chosen, _NOTHING_SKIPPED
+        return self._pair_past(chosen, header)
+
+    def _pair_past(self, chosen: _Line | None, header: str | None) -> tuple[_Line | None, list[_Line]]:
+        """``_pair`` when the answer is not the head's: ``chosen``, the line of its header, else the first
+        line not discarded during a move (an alarm answer fits any line; a discarded line only when it
+        alone waits and the answer fits it); the lines before it were skipped."""
+        queue = self._queue
         if chosen is None:
             for w in queue:
                 fits = header == _ALARM or (w.header is not None and w.header == header)
