@@ -86,7 +86,7 @@ def _run(args: argparse.Namespace, policy: Any) -> int:
         print(f"xac1 conformance: needs {' and '.join(missing)}: pip install 'xac1-proto[conformance]'",
               file=sys.stderr)
         return 2
-    from .settings import Settings, SettingsError
+    from xac1_proto.dut.settings import Settings, SettingsError
 
     try:
         settings = Settings.make(args.port, args.allow_motion, args.fresh, args.safe_range, args.seed,

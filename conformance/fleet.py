@@ -220,7 +220,7 @@ def _writable_dir(path: str) -> Path:
 
 def _check_options(args: argparse.Namespace, ts: Sequence[Target]) -> None:
     """The options each child will get, checked once here (the same errors a single run gives)."""
-    from .settings import Settings, SettingsError
+    from xac1_proto.dut.settings import Settings, SettingsError
 
     for flag, value in (("--report", args.report), ("--junit", args.junit)):
         if value:

@@ -13,6 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from xac1_proto import spec
+from xac1_proto.dut.device import DeviceUnderTest, MotionRefused
+from xac1_proto.dut.evidence import Probe, describe_answer, expect
+from xac1_proto.dut.safety import Snapshot
 from xac1_proto.frames import (
     AlarmAnswer,
     AlarmReset,
@@ -29,10 +32,6 @@ from xac1_proto.frames import (
     WriteOutputs,
     WritePoint,
 )
-
-from .dut import DeviceUnderTest, MotionRefused
-from .evidence import Probe, describe_answer, expect
-from .safety import Snapshot
 
 COMMAND_HEADERS = sorted(h for (h, role) in spec.SPECS if role == spec.COMMAND)
 MOTION_HEADERS = sorted(spec.MOVE_HEADERS)

@@ -14,8 +14,7 @@ from dataclasses import dataclass, field
 
 from xac1_proto import spec
 from xac1_proto.conversation import Conversation, Knowledge, PointData
-
-from .evidence import Probe
+from xac1_proto.dut.evidence import Probe
 
 
 @dataclass

@@ -221,7 +221,7 @@ def pytest_configure(config: pytest.Config) -> None:
 def _activate(run: Xac1Run) -> None:
     if run.active:
         return
-    from .settings import SettingsError
+    from xac1_proto.dut.settings import SettingsError
 
     c = run.config
     try:
@@ -244,7 +244,7 @@ def _activate(run: Xac1Run) -> None:
 
 
 def _settings(c: pytest.Config) -> Any:
-    from .settings import Settings
+    from xac1_proto.dut.settings import Settings
 
     return Settings.make(_single_port(c), c.getoption("xac1_allow_motion"), c.getoption("xac1_fresh"),
                          c.getoption("xac1_safe_range"), seed=c.getoption("xac1_seed"),
@@ -255,7 +255,7 @@ def _settings(c: pytest.Config) -> Any:
 
 def bad_options(c: pytest.Config) -> str | None:
     """What is wrong with the run's options (before anything is sent), else None."""
-    from .settings import SettingsError
+    from xac1_proto.dut.settings import SettingsError
 
     try:
         settings = _settings(c)
@@ -347,7 +347,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 def _open_early(run: Xac1Run) -> bool:
     """Open the device before the first check (the session fixture takes it); False, with the run's
     abort saying why, when the port does not open: no check is then started (nothing was sent)."""
-    from .dut import DeviceUnderTest
+    from xac1_proto.dut.device import DeviceUnderTest
 
     try:
         run.opened = DeviceUnderTest.open(run.settings)
@@ -391,8 +391,8 @@ def xac1_settings(request: pytest.FixtureRequest) -> Any:
 def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
     """The device under test, opened once; points and OUT ports snapshotted before any write and
     restored when the session ends."""
-    from .dut import DeviceAbort, DeviceUnderTest, NoAnswer, PortLost, StoppedAnswering
-    from .safety import take_snapshot
+    from xac1_proto.dut.device import DeviceAbort, DeviceUnderTest, NoAnswer, PortLost, StoppedAnswering
+    from xac1_proto.dut.safety import take_snapshot
 
     run = _run(request.config)
     assert run is not None
@@ -417,7 +417,7 @@ def xac1_device(request: pytest.FixtureRequest, xac1_settings: Any) -> Any:
 def xac1_dut(request: pytest.FixtureRequest, xac1_device: Any) -> Any:
     """The device for one check: evidence is filed under the check, a latched alarm is reset first; when
     the check's last probe got no byte back, the liveness check follows at once (filed under the check)."""
-    from .dut import StoppedAnswering
+    from xac1_proto.dut.device import StoppedAnswering
 
     dut = xac1_device
     dut.test = "(between checks: alarm reset)"
@@ -456,7 +456,8 @@ def xac1_kit(xac1_device: Any, xac1_snapshot: Any) -> Any:
 def pytest_runtest_call(item: pytest.Item) -> Any:
     if not is_check(item):
         return (yield)
-    from .dut import MotionRefused
+    from xac1_proto.dut.device import MotionRefused
+
     from .kit import NotEnoughPoints
     from .results import MANUAL_TAG, ManualStep
 
@@ -476,7 +477,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     run = _run(item.config)
     if run is None or not run.active or not is_check(item):
         return report
-    from .dut import DeviceAbort, NoAnswer, PortLost, StoppedAnswering
+    from xac1_proto.dut.device import DeviceAbort, NoAnswer, PortLost, StoppedAnswering
+
     from .results import result_from
 
     if call.excinfo is not None and call.excinfo.errisinstance(DeviceAbort):
@@ -506,7 +508,7 @@ def _finish(run: Xac1Run) -> None:
     if run.restored or run.dut is None:
         return
     run.restored = True
-    from .safety import restore
+    from xac1_proto.dut.safety import restore
 
     if run.policy is not None:
         run.policy.ending("the device is being restored; the report follows")

@@ -13,7 +13,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from .evidence import Probe, RuleBroken
+from xac1_proto.dut.evidence import Probe, RuleBroken
 
 PASS, FAIL, ERROR, SKIP, MANUAL = "PASS", "FAIL", "ERROR", "SKIP", "MANUAL"
 MANUAL_TAG = "manual step: "

@@ -2,7 +2,7 @@
 
 A thin shell: the capture is read as ``xac1 decode`` reads it (``sniffer.replay_script``), the options
 are checked before anything is sent, the device's points, OUT ports and position are read first and put
-back at the end however the run ends (``conformance.safety``: the conformance suite's snapshot and
+back at the end however the run ends (``xac1_proto.dut.safety``: the conformance suite's snapshot and
 restore; SIGINT, SIGTERM and SIGHUP end the replay in order, ``xac1_proto.signals``), the lines are
 played by ``sniffer.replay_player`` under the motion guard (``sniffer.replay_guard``), and the results
 are printed (``--format text``/``jsonl``) and, with ``--report``, written as a page
@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING, Any, Final, TextIO
 from .capture_args import add_capture_arguments
 
 if TYPE_CHECKING:
-    from conformance.safety import RestoreReport, Snapshot
-    from conformance.settings import Settings
+    from xac1_proto.dut.safety import RestoreReport, Snapshot
+    from xac1_proto.dut.settings import Settings
     from xac1_proto.replay import Answer, Script
 
     from .replay_player import LineResult
@@ -84,7 +84,7 @@ def _error(message: str, status: int = EXIT_USAGE) -> int:
 
 def _settings(args: argparse.Namespace) -> Settings:
     """The conformance suite's settings for this run; SettingsError for a bad combination."""
-    from conformance.settings import Settings, SettingsError, parse_safe_range
+    from xac1_proto.dut.settings import Settings, SettingsError, parse_safe_range
 
     if args.safe_range is not None:
         parse_safe_range(args.safe_range)  # a bad range is said before anything else
@@ -97,7 +97,7 @@ def _settings(args: argparse.Namespace) -> Settings:
 
 
 def run(args: argparse.Namespace) -> int:
-    from conformance.settings import SettingsError
+    from xac1_proto.dut.settings import SettingsError
 
     from .replay_script import CaptureError, read_script
 
@@ -157,9 +157,9 @@ def _dry_run(args: argparse.Namespace, settings: Settings, script: Script) -> in
 # ---- the replay ----
 
 def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: str) -> int:
-    from conformance.dut import DeviceAbort, DeviceUnderTest
-    from conformance.safety import restore, take_snapshot
     from xac1_proto.client import Client, open_port
+    from xac1_proto.dut.device import DeviceAbort, DeviceUnderTest
+    from xac1_proto.dut.safety import restore, take_snapshot
     from xac1_proto.signals import EXIT_EARLY, Interrupted, OrderlyEnd
 
     from .analyzer import Analyzer
@@ -264,7 +264,7 @@ def _changes_by_replay(results: list[LineResult], snap: Snapshot) -> list[str]:
 
 def _alive(dut: Any) -> bool:
     """Does the device still answer (0RV, asked through the conformance suite's choke point)?"""
-    from conformance.dut import DeviceAbort
+    from xac1_proto.dut.device import DeviceAbort
     from xac1_proto.frames import ReadVersion
 
     try:

@@ -1,6 +1,6 @@
 """The motion guard of ``xac1 replay``: which captured move lines may be sent to this device.
 
-The conformance suite's rules (``conformance.settings.Settings``: motion only with ``--allow-motion`` and
+The conformance suite's rules (``xac1_proto.dut.settings.Settings``: motion only with ``--allow-motion`` and
 a safe range ``LO:HI``; homing only when the origin is inside it; the built-in simulator may always
 move): a move line (0MP, 0MV, also read through a letter O or lower case) whose target is outside the
 range, or cannot be told, is not sent. 0MP N's target is point N's position as the conversation
@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from conformance.settings import Settings
 from xac1_proto import spec
 from xac1_proto.codec import diagnose, show_bytes
 from xac1_proto.conversation import Knowledge
+from xac1_proto.dut.settings import Settings
 from xac1_proto.frames import MoveDirect, MovePoint
 
 

@@ -8,10 +8,10 @@ import sys
 import pytest
 from conftest import conformance
 
-from conformance.evidence import Probe
 from conformance.model import Model
-from conformance.settings import Settings, SettingsError, parse_safe_range
 from xac1_proto import spec
+from xac1_proto.dut.evidence import Probe
+from xac1_proto.dut.settings import Settings, SettingsError, parse_safe_range
 from xac1_proto.frames import (
     AlarmReset,
     MoveDirect,

@@ -17,11 +17,11 @@ import pytest
 from test_fleet import HELD, OUT_BEFORE, Sim
 
 from conformance import plugin
-from conformance.dut import DeviceUnderTest
-from conformance.safety import restore, take_snapshot
-from conformance.settings import Settings
 from conformance.stopping import Interrupted
 from xac1_proto.client import Client
+from xac1_proto.dut.device import DeviceUnderTest
+from xac1_proto.dut.safety import restore, take_snapshot
+from xac1_proto.dut.settings import Settings
 from xac1_proto.frames import AlarmAnswer, ReadVersion, WriteOutputs, WritePoint
 
 pytestmark = pytest.mark.slow  # conformance runs interrupted

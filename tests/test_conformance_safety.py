@@ -19,10 +19,10 @@ from pathlib import Path
 import pytest
 from conftest import conformance, read_table
 
-from conformance.evidence import Probe
-from conformance.settings import SettingsError, parse_points
 from xac1_proto import spec
 from xac1_proto.client import Client
+from xac1_proto.dut.evidence import Probe
+from xac1_proto.dut.settings import SettingsError, parse_points
 from xac1_proto.exchange import Exchange
 from xac1_proto.frames import ReadVersion
 from xac1_proto.recording import read_recording

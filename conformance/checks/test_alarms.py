@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, reset_ok
 from conformance.results import ManualStep
 from xac1_proto import spec
 from xac1_proto.codec import show_bytes
+from xac1_proto.dut.evidence import describe_answer, expect
 from xac1_proto.frames import AlarmReset, ReadVersion
 
 MALFORMED = b"0XY" + spec.TERMINATOR

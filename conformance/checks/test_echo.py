@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, differences, expect
 from conformance.kit import reset_ok
 from xac1_proto import spec
 from xac1_proto.codec import diagnose, show_bytes
+from xac1_proto.dut.evidence import describe_answer, differences, expect
 from xac1_proto.frames import AlarmReset, SwitchMode, WriteOutputs, WritePoint
 
 

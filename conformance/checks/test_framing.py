@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
 from conformance.kit import COMMAND_HEADERS, MOTION_HEADERS, TWO_ANSWERS, two_offset
 from xac1_proto import spec
 from xac1_proto.codec import show_bytes
+from xac1_proto.dut.evidence import describe_answer, expect
 from xac1_proto.frames import StoreCurrent
 
 NEEDS_MOTION = {*MOTION_HEADERS, StoreCurrent.HEADER}  # 0WC needs a homed axis

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer
-from conformance.safety import POINTS
 from xac1_proto import spec
+from xac1_proto.dut.evidence import describe_answer
+from xac1_proto.dut.safety import POINTS
 from xac1_proto.frames import (
     MoveDirect,
     MovePoint,

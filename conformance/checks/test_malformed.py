@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
 from conformance.kit import MALFORMED
 from xac1_proto.codec import show_bytes
+from xac1_proto.dut.evidence import describe_answer, expect
 
 CASES = [pytest.param(m, id=m.name, marks=[pytest.mark.xac1_motion] if m.moves else []) for m in MALFORMED]
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
 from xac1_proto import spec
+from xac1_proto.dut.evidence import describe_answer, expect
 from xac1_proto.frames import MoveDirect, MovePoint, ReadCurrentAnswer, WritePoint
 
 pytestmark = pytest.mark.xac1_motion

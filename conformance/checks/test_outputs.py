@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, expect
+from xac1_proto.dut.evidence import describe_answer, expect
 from xac1_proto.frames import ReadOutputs, ReadOutputsAnswer, WriteOutputs
 
 

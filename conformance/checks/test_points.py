@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.evidence import describe_answer, differences, expect
-from conformance.safety import POINTS
+from xac1_proto.dut.evidence import describe_answer, differences, expect
+from xac1_proto.dut.safety import POINTS
 from xac1_proto.frames import (
     MoveDirect,
     MovePoint,

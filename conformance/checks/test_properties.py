@@ -22,12 +22,12 @@ from hypothesis import HealthCheck, Phase, seed, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, get_state_machine_test, precondition, rule
 
-from conformance.dut import DeviceAbort
-from conformance.evidence import Probe, RuleBroken, describe_answer
 from conformance.kit import MALFORMED
 from conformance.model import Model
-from conformance.safety import POINTS
 from xac1_proto import spec
+from xac1_proto.dut.device import DeviceAbort
+from xac1_proto.dut.evidence import Probe, RuleBroken, describe_answer
+from xac1_proto.dut.safety import POINTS
 from xac1_proto.frames import (
     AlarmReset,
     Frame,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from conformance.evidence import describe_answer, expect
+from xac1_proto.dut.evidence import describe_answer, expect
 from xac1_proto.frames import ReadVersion, ReadVersionAnswer
 
 

@@ -36,7 +36,7 @@ from xac1_proto.frames import (
     WritePoint,
 )
 
-from .dut import DeviceAbort, DeviceUnderTest, MotionRefused, PortLost, StoppedAnswering
+from .device import DeviceAbort, DeviceUnderTest, MotionRefused, PortLost, StoppedAnswering
 from .evidence import Probe, describe_answer
 
 POINTS = range(spec.FIELDS["n"].command_range[0], spec.FIELDS["n"].command_range[1] + 1)
