@@ -28,7 +28,8 @@ from xac1_proto.fuzz.judge import ANSWER, Point, Transcript, answers_in, probe_f
 if TYPE_CHECKING:
     from xac1_proto.dut.settings import Settings
 
-LATE_FACTOR: Final = 5  # after a silent probe, bytes are awaited this many answer windows more
+LATE_FACTOR: Final = 5  # after a silent probe, bytes are awaited this many answer windows more,
+LATE_MIN_S: Final = 1.0  # and at least this long
 
 
 class Unreadable(Exception):
@@ -113,16 +114,16 @@ class Unit:
     # ---- the probes ----
 
     def _late(self, since: float) -> float | None:
-        """Seconds from ``since`` to the first late byte, when one comes within LATE_FACTOR windows."""
-        until = time.monotonic() + LATE_FACTOR * self.window
+        """Seconds from ``since`` to the first late byte, when one comes within LATE_FACTOR windows (at
+        least LATE_MIN_S); the
+        whole time is waited, so that every late answer (of the probe and of lines before it) is in the
+        transcript, and in a capture, where it came."""
+        until = time.monotonic() + max(LATE_FACTOR * self.window, LATE_MIN_S)
+        late = None
         while time.monotonic() < until:
-            data = self._read(until)
-            if data:
+            if self._read(until) and late is None:
                 late = time.monotonic() - since
-                while LF not in data and time.monotonic() < until:
-                    data += self._read(until)
-                return late
-        return None
+        return late
 
     def _send(self, frame: Frame) -> tuple[bytes, float]:
         t0 = time.monotonic()
