@@ -1,0 +1,132 @@
+"""``xac1 fuzz`` end to end: the clean simulator stands up, each robustness fault is found, shrunk,
+saved and replayed; options, endings and output files."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT, wait_until, xac1
+
+from xac1_proto.cli import main
+
+FAST = ("--timeout", "0.05", "--seed", "3")
+
+
+def _jsonl(text: str) -> list[dict]:
+    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--safe-range", "0:0x100"], "--safe-range goes with --allow-motion"),
+    (["--port", "/dev/ttyUSB99", "--allow-motion"], "--allow-motion needs --safe-range"),
+    (["--safe-range", "9:1", "--allow-motion"], "LO 0x000009 is above HI"),
+    (["--report", "/"], "--report"),
+])
+def test_bad_options_exit_2_and_send_nothing(capsys, args, says):
+    """A bad option or combination is refused with exit 2, saying what was wrong, before any port is
+    opened."""
+    assert main(["fuzz", *args]) == 2
+    assert says in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["0", "-3", "x"])
+def test_bad_counts_are_usage_errors(capsys, value):
+    """--cases must be a positive count (argparse exits 2 naming it)."""
+    with pytest.raises(SystemExit) as exc:
+        main(["fuzz", "--cases", value])
+    assert exc.value.code == 2 and "--cases" in capsys.readouterr().err
+
+
+def test_unreachable_unit_exits_3(capsys):
+    """A port that does not open is exit 3, nothing sent."""
+    assert main(["fuzz", "--port", "socket://127.0.0.1:9", "--cases", "1"]) == 3
+    assert "cannot open" in capsys.readouterr().err
+
+
+def test_a_silent_unit_exits_3(capsys):
+    """A unit that never answers at the start (a simulator that drops every byte it sends) is exit 3."""
+    assert main(["fuzz", "--port", "xac1sim://?time_scale=0&drop=1", "--cases", "1", "--timeout", "0.05"]) == 3
+    assert "cannot read the unit's points" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_clean_simulator_finds_nothing(tmp_path):
+    """Against the clean simulator a short seeded run finds nothing and exits 0: one JSON line a case, a
+    summary line with the seed, and the report and JUnit written."""
+    report, junit = tmp_path / "fuzz.html", tmp_path / "fuzz.xml"
+    r = xac1("fuzz", "--cases", "60", *FAST, "--format", "jsonl", "--report", str(report), "--junit", str(junit))
+    assert r.returncode == 0, r.stderr
+    objs = _jsonl(r.stdout)
+    assert [o["type"] for o in objs] == ["case"] * 60 + ["summary"]
+    summary = objs[-1]
+    assert summary["cases"] == 60 and summary["findings"] == 0 and summary["seed"] == 3 and summary["exit"] == 0
+    assert summary["restored"] is True
+    assert len(summary["generators"]) > 5
+    assert all(o["finding"] is None for o in objs[:-1])
+    assert "stood up to every case" in report.read_text()
+    assert 'failures="0"' in junit.read_text()
+
+
+# deviation -> (kind of finding, longest shrunk write in bytes)
+FAULTS = {"hang-on-long-line": ("silence", 41), "nul-corrupts-point": ("state", 8),
+          "late-after-errors": ("silence", 8)}
+
+
+def _violations(capture: Path, port: str) -> tuple[int, dict]:
+    r = xac1("replay", str(capture), "--port", port, "--format", "jsonl")
+    return r.returncode, _jsonl(r.stdout)[-1]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("deviation", sorted(FAULTS))
+def test_each_robustness_fault_is_found_shrunk_and_replayed(tmp_path, deviation):
+    """Against {deviation} the run finds the fault, shrinks it to a line or two, saves a capture and
+    exits 1; replaying the capture against the faulty simulator shows the finding's violation codes
+    again, and against the clean simulator it does not."""
+    port = f"xac1sim://?time_scale=0&deviation={deviation}"
+    report = tmp_path / "fuzz.md"
+    r = xac1("fuzz", "--port", port, "--cases", "60", "--max-findings", "1", *FAST, "--format", "jsonl",
+             "--save", str(tmp_path), "--report", str(report))
+    assert r.returncode == 1, r.stdout[-2000:] + r.stderr
+    findings = [o for o in _jsonl(r.stdout) if o["type"] == "finding"]
+    assert len(findings) == 1
+    f = findings[0]
+    kind, longest = FAULTS[deviation]
+    assert f["kind"] == kind and f["shrunk"], f
+    assert len(f["input"]) <= 2 and max(len(x.encode().decode("unicode_escape")) for x in f["input"]) <= longest
+    assert f["codes"], f
+    capture = Path(f["capture"])
+    assert capture.parent == tmp_path and capture.exists()
+    assert f"### 1. {kind}" in report.read_text()
+    faulty_status, faulty = _violations(capture, port)
+    clean_status, clean = _violations(capture, "xac1sim://?time_scale=0")
+    assert set(f["codes"]) <= set(faulty["violations"]), (f["codes"], faulty)
+    assert not set(f["codes"]) <= set(clean["violations"]), (f["codes"], clean)
+    if deviation != "late-after-errors":  # a late answer is the same answer: only its timing differs
+        assert (faulty_status, clean_status) == (0, 1)
+
+
+@pytest.mark.slow
+def test_sigint_ends_the_run_in_order(tmp_path):
+    """SIGINT during the run ends it in order: the unit is restored, the summary says so and names the
+    signal, and the exit status is that of the findings (0: none)."""
+    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "fuzz", "--seconds", "60", *FAST,
+                             "--format", "jsonl"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    assert proc.stdout is not None
+    try:
+        wait_until(lambda: proc.stdout.readline().startswith('{"type": "case"'), 20, "a first case")
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    summary = _jsonl(out)[-1]
+    assert summary["type"] == "summary" and summary["interrupted"] == "SIGINT" and summary["restored"]
+    assert "restore: 15 of 15 points unchanged" in err or "restored to" in err
