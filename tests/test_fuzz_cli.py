@@ -50,7 +50,8 @@ def test_unreachable_unit_exits_3(capsys):
 
 def test_a_silent_unit_exits_3(capsys):
     """A unit that never answers at the start (a simulator that drops every byte it sends) is exit 3."""
-    assert main(["fuzz", "--port", "xac1sim://?time_scale=0&drop=1", "--cases", "1", "--timeout", "0.05"]) == 3
+    port = "xac1sim://?time_scale=0&drop=1"
+    assert main(["fuzz", "--port", port, "--cases", "1", "--timeout", "0.05"]) == 3
     assert "cannot read the unit's points" in capsys.readouterr().err
 
 
@@ -59,12 +60,13 @@ def test_clean_simulator_finds_nothing(tmp_path):
     """Against the clean simulator a short seeded run finds nothing and exits 0: one JSON line a case, a
     summary line with the seed, and the report and JUnit written."""
     report, junit = tmp_path / "fuzz.html", tmp_path / "fuzz.xml"
-    r = xac1("fuzz", "--cases", "60", *FAST, "--format", "jsonl", "--report", str(report), "--junit", str(junit))
+    r = xac1("fuzz", "--cases", "60", *FAST, "--format", "jsonl", "--report", str(report),
+             "--junit", str(junit))
     assert r.returncode == 0, r.stderr
     objs = _jsonl(r.stdout)
     assert [o["type"] for o in objs] == ["case"] * 60 + ["summary"]
     summary = objs[-1]
-    assert summary["cases"] == 60 and summary["findings"] == 0 and summary["seed"] == 3 and summary["exit"] == 0
+    assert (summary["cases"], summary["findings"], summary["seed"], summary["exit"]) == (60, 0, 3, 0)
     assert summary["restored"] is True
     assert len(summary["generators"]) > 5
     assert all(o["finding"] is None for o in objs[:-1])
@@ -98,7 +100,8 @@ def test_each_robustness_fault_is_found_shrunk_and_replayed(tmp_path, deviation)
     f = findings[0]
     kind, longest = FAULTS[deviation]
     assert f["kind"] == kind and f["shrunk"], f
-    assert len(f["input"]) <= 2 and max(len(x.encode().decode("unicode_escape")) for x in f["input"]) <= longest
+    sent = [x.encode().decode("unicode_escape") for x in f["input"]]
+    assert len(sent) <= 2 and max(len(x) for x in sent) <= longest, sent
     assert f["codes"], f
     capture = Path(f["capture"])
     assert capture.parent == tmp_path and capture.exists()

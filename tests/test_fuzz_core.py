@@ -17,7 +17,7 @@ from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST
 from xac1_proto.codec import diagnose
 from xac1_proto.framer import MAX_FRAME
-from xac1_proto.frames import StoreCurrent, WritePoint, WritePointAnswer, WriteOutputsAnswer
+from xac1_proto.frames import StoreCurrent, WriteOutputsAnswer, WritePoint, WritePointAnswer
 from xac1_proto.fuzz import guard
 from xac1_proto.fuzz.cases import ALL_POINTS, GENERATORS, Case, Context, cases, finish, next_case
 from xac1_proto.fuzz.judge import ANSWER, SILENCE, Expectation, Transcript, probe_finding, state_finding

@@ -168,7 +168,8 @@ def _fuzz(args: argparse.Namespace, settings: Settings, seed: int) -> int:
                     raise DeviceAbort("0RV got no answer")
             except DeviceAbort as exc:
                 unit.close()
-                return _error(f"cannot read the unit's points, OUT ports and version first: {exc}", EXIT_DEVICE)
+                return _error(f"cannot read the unit's points, OUT ports and version first: {exc}",
+                              EXIT_DEVICE)
         except Interrupted as exc:
             print(f"{PROGRAM}: stopped by {exc.name} before the first case; nothing of the fuzz sent",
                   file=sys.stderr)
@@ -212,12 +213,13 @@ def _conclude(args: argparse.Namespace, settings: Settings, seed: int, fuzz: Any
     out.summary(summary)
     for line in lines:
         print(f"{PROGRAM}: restore: {line}", file=sys.stderr)
-    for option, path, write in (("--report", args.report, "write_report"), ("--junit", args.junit, "write_junit")):
-        if path:
-            from . import fuzz_files
+    from .fuzz_files import write_junit, write_report
 
+    for option, path, write in (("--report", args.report, write_report),
+                                ("--junit", args.junit, write_junit)):
+        if path:
             try:
-                getattr(fuzz_files, write)(path, summary)
+                write(path, summary)
             except OSError as exc:
                 print(f"{PROGRAM}: cannot write {option} {path}: {exc.strerror or exc}", file=sys.stderr)
             else:

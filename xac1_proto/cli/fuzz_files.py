@@ -77,7 +77,8 @@ def junit_xml(summary: RunSummary) -> bytes:
             text = "\n\n".join(f"input: {' '.join(wire(x) for x in r.finding.lines)}\n{r.finding.detail}\n"
                                f"codes: {', '.join(r.finding.codes) or 'none'}"
                                + (f"\ncapture: {r.capture}" if r.capture else "") for r in mine)
-            fail = ET.SubElement(case, "failure", message=f"{len(mine)} {kind} finding(s): {KIND_MEANING[kind]}")
+            fail = ET.SubElement(case, "failure",
+                                 message=f"{len(mine)} {kind} finding(s): {KIND_MEANING[kind]}")
             fail.text = text
     return ET.tostring(suite, encoding="utf-8", xml_declaration=True)
 

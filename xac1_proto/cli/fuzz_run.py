@@ -146,8 +146,8 @@ class FuzzRun:
 
     def _shrunk(self, i: int, found: Finding, chunks: list[Chunk]) -> tuple[Reported, list[Chunk]]:
         if self.limits.shrink_budget <= 0:
-            return Reported(i, found.lines, found, False, why="shrinking was turned off (--shrink-budget 0)"), \
-                chunks
+            off = "shrinking was turned off (--shrink-budget 0)"
+            return Reported(i, found.lines, found, False, why=off), chunks
         still = self._still(found.kind)
         try:
             result = shrink(found.lines, lambda lines: still(lines).kind == found.kind, self.ctx,
@@ -166,10 +166,9 @@ class FuzzRun:
         unit = self.unit
 
         def trial(lines: tuple[bytes, ...], *, wait_late: bool = False) -> Trial:
-            if unit.settings.simulator or kind == SILENCE:
-                if not unit.power_cycle():
-                    raise NoFreshStart("a silence on a real unit needs a power cycle for each re-run, and "
-                                       "there is no terminal to ask for one: reported as found")
+            if (unit.settings.simulator or kind == SILENCE) and not unit.power_cycle():
+                raise NoFreshStart("a silence on a real unit needs a power cycle for each re-run, and "
+                                   "there is no terminal to ask for one: reported as found")
             mark = self.transcript.mark()
             try:
                 unit.dut.latched = None
@@ -205,11 +204,10 @@ class FuzzRun:
         """After a finding: the simulator starts anew; a real unit that fell silent is power-cycled by
         its operator, or the run ends."""
         unit = self.unit
-        if unit.settings.simulator or kind == SILENCE:
-            if not unit.power_cycle():
-                self.stopped = ("the unit stopped answering and there is no terminal to ask for a power "
-                                "cycle: the run ends here")
-                return
+        if (unit.settings.simulator or kind == SILENCE) and not unit.power_cycle():
+            self.stopped = ("the unit stopped answering and there is no terminal to ask for a power "
+                            "cycle: the run ends here")
+            return
         try:
             unit.dut.latched = None
             unit.dut.settle()

@@ -19,8 +19,16 @@ from xac1_proto import spec
 from xac1_proto.chunk import DEVICE, HOST
 from xac1_proto.dut.device import DeviceAbort, DeviceUnderTest
 from xac1_proto.dut.safety import POINTS
-from xac1_proto.frames import AlarmAnswer, AlarmReset, Frame, ReadOutputs, ReadOutputsAnswer, ReadPoint, \
-    ReadPointAnswer, ReadVersion
+from xac1_proto.frames import (
+    AlarmAnswer,
+    AlarmReset,
+    Frame,
+    ReadOutputs,
+    ReadOutputsAnswer,
+    ReadPoint,
+    ReadPointAnswer,
+    ReadVersion,
+)
 from xac1_proto.fuzz import guard
 from xac1_proto.fuzz.cases import LF, Case
 from xac1_proto.fuzz.judge import ANSWER, Point, Transcript, answers_in, probe_finding
@@ -84,8 +92,9 @@ class Unit:
         return data
 
     def send_case(self, case: Case) -> bytes:
-        """Write the case's writes (each checked by the motion guard first), waiting after each for its
-        answers: one a LF sent, or an answer window of quiet (a write with no LF: a window of silence). The bytes the unit sent back."""
+        """Write the case's writes (the whole case checked by the motion guard first), waiting after each
+        for its answers: one a LF sent, or an answer window of quiet (a write with no LF: a window of
+        silence). The bytes the unit sent back."""
         guard.check(case.data)  # raises MotionLine: nothing of the case is sent
         port = self.dut.client.port
         while port.in_waiting:  # a late answer of the last probe: in the transcript, not in the case's

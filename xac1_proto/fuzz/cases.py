@@ -70,7 +70,8 @@ def base_frame(rng: random.Random, ctx: Context) -> Frame:
         lo, hi = fs.field_range(name)
         values[name] = rng.choice(sorted(ctx.writable)) if name == "n" and fs.header in _WRITES \
             else rng.randint(lo, hi)
-    return FRAME_CLASSES[fs.key](**values)
+    frame: Frame = FRAME_CLASSES[fs.key](**values)  # type: ignore[arg-type]  # checked by its class
+    return frame
 
 
 def _base(rng: random.Random, ctx: Context) -> bytes:
@@ -218,7 +219,7 @@ def _no_foreign_writes(data: bytes, writable: frozenset[int]) -> bytes:
     """``data`` with the W of every write to an unwritable point replaced by X (per line)."""
     if writable == ALL_POINTS:
         return data
-    out, at = bytearray(), 0
+    out = bytearray()
     for line in data.split(LF):
         spoiled = bytearray(line)
         while (hit := _unwritable_write(bytes(spoiled), writable)) is not None:
