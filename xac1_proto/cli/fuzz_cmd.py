@@ -211,6 +211,9 @@ def _conclude(args: argparse.Namespace, settings: Settings, seed: int, fuzz: Any
                             stopped=fuzz.stopped or failure, restore=tuple(lines), restored=restored.ok,
                             exit=status)
     out.summary(summary)
+    for note in fuzz.refused:
+        print(f"{PROGRAM}: a move left out (the motion guard refused it; nothing sent): {note}",
+              file=sys.stderr)
     for line in lines:
         print(f"{PROGRAM}: restore: {line}", file=sys.stderr)
     from .fuzz_files import write_junit, write_report

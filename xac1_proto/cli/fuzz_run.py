@@ -71,6 +71,7 @@ class FuzzRun:
         self.results: list[CaseResult] = []
         self.findings: list[Reported] = []
         self.stopped: str | None = None
+        self.refused: list[str] = []  # move cases the motion guard refused (nothing sent)
         self.on_case = on_case
         self.on_finding = on_finding
         self._pending: list[bytes] = []  # writes since the last clean state check
@@ -89,31 +90,34 @@ class FuzzRun:
         return len(self.findings) >= lim.max_findings or self.stopped is not None
 
     def run(self, stop: Callable[[], bool]) -> None:
+        """Cases until the limits say so or ``stop()``; then, unless stopped, the final state check."""
         self._stop = stop
         started = time.monotonic()
         while not stop() and not self.done(started):
-            self.one(next_case(self.rng, self.ctx), last=self._last(started))
-
-    def _last(self, started: float) -> bool:
-        lim = self.limits
-        return lim.cases is not None and len(self.results) + 1 >= lim.cases
+            self.one(next_case(self.rng, self.ctx))
+        if self._pending and not stop() and self.stopped is None:
+            mark = self.transcript.mark()
+            kind, detail = self._state_check()
+            if kind is not None:
+                finding = Finding(kind, tuple(self._pending), detail, self.transcript.device_codes(mark))
+                self._report(len(self.results) - 1, finding, self.transcript.since(mark))
 
     # ---- one case ----
 
-    def one(self, case: Case, *, last: bool = False) -> None:
+    def one(self, case: Case) -> None:
+        """Send one case, probe liveness, check the state when due, report what was found."""
         i = len(self.results)
         mark = self.transcript.mark()
         try:
             answered = self.unit.send_move(case) if case.motion else self.unit.send_case(case)
-        except MotionRefused as exc:
-            self.results.append(CaseResult(i, case.kind, case.lines, b"", (), None))
-            self.stopped = f"a move case was refused by the motion guard: {exc}"
-            return
+        except MotionRefused as exc:  # nothing sent: the move is left out, the run goes on
+            self.refused.append(f"case {i}: {exc}")
+            answered = b""
         self._pending += case.lines
         self.expect.observe(answers_in(answered))
         live = self.unit.liveness(self.version, latched_after(answered, case))
         kind, detail = live if live else (None, "")
-        if kind is None and (last or (i + 1) % self.limits.state_every == 0):
+        if kind is None and (i + 1) % self.limits.state_every == 0:
             kind, detail = self._state_check()
         codes = self.transcript.device_codes(mark)
         result = CaseResult(i, case.kind, case.lines, answered, codes, kind)

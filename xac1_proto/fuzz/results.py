@@ -13,15 +13,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..dut.evidence import wire
 from .judge import KINDS, Finding
 
-_ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
-
-
-def wire(data: bytes) -> str:
-    """Bytes as they read on the wire: printable ASCII as is, ``\\r``, ``\\n``, ``\\xNN``."""
-    return "".join(chr(b) if 0x20 <= b < 0x7F and b != 0x5C else _ESCAPES.get(b, f"\\x{b:02X}")
-                   for b in data)
+__all__ = ["CaseResult", "Reported", "RunSummary", "wire"]
 
 
 @dataclass(frozen=True)
