@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, wait_until, xac1
+from conftest import ROOT, wait_until, xac1, xac1_sim
 
 from xac1_proto.cli import main
 
@@ -133,3 +133,64 @@ def test_sigint_ends_the_run_in_order(tmp_path):
     summary = _jsonl(out)[-1]
     assert summary["type"] == "summary" and summary["interrupted"] == "SIGINT" and summary["restored"]
     assert "restore: 15 of 15 points unchanged" in err or "restored to" in err
+
+
+@pytest.mark.slow
+def test_a_real_unit_that_falls_silent_is_reported_as_found():
+    """On a unit that is not the built-in simulator (a simulator over TCP) a silence cannot be shrunk
+    without a power cycle and there is no terminal to ask for one: it is reported as found, the run ends
+    there, exit 1, and the restore says it could not be verified."""
+    with xac1_sim("--tcp", "0", "--time-scale", "0", "--deviation", "hang-on-long-line") as (_, url):
+        r = xac1("fuzz", "--port", url, "--cases", "80", "--timeout", "0.1", "--seed", "3",
+                 "--format", "jsonl")
+    assert r.returncode == 1, r.stderr
+    objs = _jsonl(r.stdout)
+    finding = next(o for o in objs if o["type"] == "finding")
+    assert finding["kind"] == "silence" and not finding["shrunk"]
+    assert "no terminal to ask" in finding["not_shrunk_because"]
+    summary = objs[-1]
+    assert summary["cases"] < 80 and "the run ends here" in summary["stopped"]
+    assert summary["restored"] is False
+    assert "could not be done or verified" in r.stderr
+
+
+@pytest.mark.slow
+def test_a_real_unit_is_shrunk_without_a_power_cycle_and_never_written_where_it_cannot_be_restored():
+    """On a unit that is not the built-in simulator a state finding is shrunk by re-running after an
+    alarm reset; no case wrote a point (none held data, so none could be written back), so point 1's
+    change is the unit's own."""
+    with xac1_sim("--tcp", "0", "--time-scale", "0", "--deviation", "nul-corrupts-point") as (_, url):
+        r = xac1("fuzz", "--port", url, "--cases", "40", "--timeout", "0.1", "--seed", "3",
+                 "--format", "jsonl", "--max-findings", "1")
+    assert r.returncode == 1, r.stderr
+    objs = _jsonl(r.stdout)
+    finding = next(o for o in objs if o["type"] == "finding")
+    assert finding["kind"] == "state" and finding["shrunk"] and finding["input"] == ["\\x00\\n"], finding
+    assert "no case wrote anything" in finding["detail"]
+
+
+@pytest.mark.slow
+def test_progress_bar_on_a_terminal(tmp_path):
+    """On a terminal, stderr shows the live progress bar with the cases and findings so far."""
+    import os
+    import pty
+
+    master, slave = pty.openpty()
+    try:
+        r = subprocess.run([sys.executable, "-m", "xac1_proto", "fuzz", "--cases", "15", *FAST], cwd=ROOT,
+                           stdout=subprocess.PIPE, stderr=slave, stdin=subprocess.DEVNULL, timeout=60,
+                           env={**os.environ, "COLUMNS": "120", "TERM": "xterm"})
+        os.close(slave)
+        seen = b""
+        while True:
+            try:
+                data = os.read(master, 4096)
+            except OSError:
+                break
+            if not data:
+                break
+            seen += data
+    finally:
+        os.close(master)
+    assert r.returncode == 0
+    assert b"xac1 fuzz" in seen and b"cases, 0 finding(s)" in seen, seen[-500:]

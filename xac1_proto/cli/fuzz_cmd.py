@@ -205,7 +205,9 @@ def _conclude(args: argparse.Namespace, settings: Settings, seed: int, fuzz: Any
     else:
         status = EXIT_FINDINGS if fuzz.findings else EXIT_CLEAN
     version = next((getattr(f, "version", None) for f in answers_in(fuzz.version)), None)
-    lines = restored.lines + restored.warnings + restored.problems + restored.unverified
+    lines = restored.lines + restored.warnings + restored.problems
+    if restored.unverified:  # what the restore's own log cannot know: what the cases may have written
+        lines += [restored.unverified[0], *_changes_by_cases(fuzz)]
     summary = RunSummary.of(fuzz.results, fuzz.findings, port=settings.port, seed=seed, seconds=seconds,
                             version=version, motion=args.allow_motion, interrupted=signal,
                             stopped=fuzz.stopped or failure, restore=tuple(lines), restored=restored.ok,
@@ -228,6 +230,29 @@ def _conclude(args: argparse.Namespace, settings: Settings, seed: int, fuzz: Any
             else:
                 print(f"{PROGRAM}: {option[2:]} written to {path}", file=sys.stderr)
     return status
+
+
+def _changes_by_cases(fuzz: Any) -> list[str]:
+    """What the cases sent that a lenient controller may have carried out as a write, when the restore
+    could not check it."""
+    from xac1_proto import spec
+    from xac1_proto.chunk import HOST
+    from xac1_proto.codec import diagnose
+    from xac1_proto.frames import StoreCurrent, SwitchMode, WriteOutputs, WritePoint
+
+    sent = b"".join(c.data for c in fuzz.transcript.chunks if c.dir == HOST)
+    points: set[int] = set()
+    outputs = mode = False
+    for line in sent.split(b"\n"):
+        command, _ = diagnose(line.upper() + b"\n", spec.COMMAND)
+        if isinstance(command, (WritePoint, StoreCurrent)):
+            points.add(command.n)
+        outputs = outputs or isinstance(command, WriteOutputs)
+        mode = mode or isinstance(command, SwitchMode)
+    out = [f"not verified: point {n:X}, which a case may have written" for n in sorted(points)]
+    out += ["not verified: the OUT ports, which a case may have written"] if outputs else []
+    out += ["not verified: the mode, which a case may have switched (0CM)"] if mode else []
+    return out or ["no case sent a line a controller could take for a write or a mode switch"]
 
 
 class _Output:
