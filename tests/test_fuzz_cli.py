@@ -194,3 +194,29 @@ def test_progress_bar_on_a_terminal(tmp_path):
         os.close(master)
     assert r.returncode == 0
     assert b"xac1 fuzz" in seen and b"cases, 0 finding(s)" in seen, seen[-500:]
+
+
+@pytest.mark.slow
+def test_a_wrong_answer_to_the_probe_is_an_answer_finding():
+    """When the unit starts answering 0RV otherwise than at the start (here the simulator's letter-o
+    deviation switched on mid-run through its control channel), the next probe gives an ``answer``
+    finding naming the engine's code for it (``letter-o``), exit 1."""
+    with xac1_sim("--tcp", "0", "--time-scale", "0") as (sim, url):
+        args = ["fuzz", "--port", url, "--seconds", "30", "--timeout", "0.1", "--seed", "3",
+                "--format", "jsonl", "--max-findings", "1", "--shrink-budget", "5"]
+        proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", *args], cwd=ROOT, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        assert proc.stdout is not None and sim.stdin is not None
+        try:
+            first = proc.stdout.readline()
+            assert first.startswith('{"type": "case"'), first
+            sim.stdin.write("deviation letter-o on\n")
+            sim.stdin.flush()
+            out, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    assert proc.returncode == 1, err
+    finding = next(o for o in _jsonl(out) if o["type"] == "finding")
+    assert finding["kind"] == "answer" and "'ORV100'" in finding["detail"], finding
+    assert "letter-o" in finding["codes"]

@@ -158,7 +158,8 @@ def test_probe_findings():
     kind, detail = probe_finding(rv, b"", b"0RV\r\n", late_s=None, window_s=0.2)
     assert kind == SILENCE and "no answer within 0.20 s" in detail
     kind, detail = probe_finding(rv, b"", b"0RV\r\n", late_s=0.7, window_s=0.2)
-    assert kind == SILENCE and "after 0.70 s" in detail
+    assert kind == SILENCE and "only 0.70 s after it was sent (late)" in detail
+    assert probe_finding(None, b"0%%0E\r\n", b"0%C\r\n", late_s=None, window_s=0.2) is None
     kind, detail = probe_finding(rv, b"0%%01\r\n", b"0RV\r\n", late_s=None, window_s=0.2)
     assert kind == ANSWER and "'0%%01'" in detail
 

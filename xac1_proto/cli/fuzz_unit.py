@@ -153,8 +153,7 @@ class Unit:
             raw, t0 = self._send(AlarmReset())
             if not raw:
                 late = self._late(t0) if wait_late else None
-                return probe_finding(b"?", b"", AlarmReset().to_bytes(), late_s=late, window_s=self.window,
-                                     reset_silent=True)
+                return probe_finding(None, b"", AlarmReset().to_bytes(), late_s=late, window_s=self.window)
         raw, t0 = self._send(ReadVersion())
         late = self._late(t0) if not raw and wait_late else None
         return probe_finding(expected, raw, ReadVersion().to_bytes(), late_s=late, window_s=self.window)

@@ -58,7 +58,7 @@ class Transcript:
         self.chunks: list[Chunk] = []
         self.verdicts: list[Verdict] = []
         self._timeout = no_answer_timeout
-        self._conversation = Conversation(no_answer_timeout=no_answer_timeout, storm_limit=10 ** 9)
+        self._conversation = Conversation(no_answer_timeout=no_answer_timeout)
         self._framers = {HOST: Framer(), DEVICE: Framer()}
 
     def add(self, direction: str, data: bytes, t: float) -> None:
@@ -148,18 +148,16 @@ def _point(p: Point) -> str:
     return f"V={v} A={a} O={o} Pos={pos:06X}"
 
 
-def probe_finding(expected: bytes, got: bytes, probe: bytes, *, late_s: float | None, window_s: float,
-                  reset_silent: bool = False) -> tuple[str, str] | None:
-    """(kind, detail) when the liveness probe ``probe`` (0RV; 0%C when ``reset_silent``) was not answered
-    ``expected`` within ``window_s``; ``late_s``: when bytes came after the window, how late."""
+def probe_finding(expected: bytes | None, got: bytes, probe: bytes, *, late_s: float | None,
+                  window_s: float) -> tuple[str, str] | None:
+    """(kind, detail) when the liveness probe ``probe`` was not answered within ``window_s``, or answered
+    otherwise than ``expected`` (None: any answer will do, as for the alarm reset before 0RV);
+    ``late_s``: when bytes came after the window, how long after the probe was sent."""
     what = show_bytes(probe)
     if not got:
-        if late_s is not None:
-            return SILENCE, (f"{what} answered only after {late_s:.2f} s, beyond the {window_s:.2f} s answer "
-                             f"window")
-        first = "the alarm reset " if reset_silent else ""
-        return SILENCE, f"{first}{what} got no answer within {window_s:.2f} s"
-    if got != expected:
+        late = "" if late_s is None else f"; bytes came only {late_s:.2f} s after it was sent (late)"
+        return SILENCE, f"{what} got no answer within {window_s:.2f} s{late}"
+    if expected is not None and got != expected:
         return ANSWER, f"{what} answered {show_bytes(got)}; at the start it answered {show_bytes(expected)}"
     return None
 
