@@ -21,7 +21,16 @@ from xac1_proto.chunk import Chunk
 from xac1_proto.dut.device import DeviceAbort, MotionRefused
 from xac1_proto.dut.safety import Snapshot
 from xac1_proto.fuzz.cases import ALL_POINTS, Case, Context, next_case
-from xac1_proto.fuzz.judge import SILENCE, STATE, Expectation, Finding, Transcript, answers_in, state_finding
+from xac1_proto.fuzz.judge import (
+    ANSWER,
+    SILENCE,
+    STATE,
+    Expectation,
+    Finding,
+    Transcript,
+    answers_in,
+    state_finding,
+)
 from xac1_proto.fuzz.results import CaseResult, Reported
 from xac1_proto.fuzz.shrink import shrink
 
@@ -131,7 +140,7 @@ class FuzzRun:
         try:
             points, outputs = self.unit.read_state()
         except Unreadable as exc:
-            return "answer", f"the state read-back failed: {exc}"
+            return ANSWER, f"the state read-back failed: {exc}"
         detail = state_finding(self.expect, points, outputs)
         if detail is None:
             self._pending = []
@@ -175,8 +184,7 @@ class FuzzRun:
                                    "there is no terminal to ask for one: reported as found")
             mark = self.transcript.mark()
             try:
-                unit.dut.latched = None
-                unit.dut.settle()
+                unit.settle()
             except DeviceAbort:
                 return Trial(None)
             version = self.version  # as it answered at the start: a fault that stays is still a fault
@@ -196,7 +204,7 @@ class FuzzRun:
                 try:
                     points, outputs = unit.read_state()
                 except Unreadable as exc:
-                    got, detail = "answer", str(exc)
+                    got, detail = ANSWER, str(exc)
                 else:
                     d = state_finding(expect, points, outputs)
                     got, detail = (STATE, d) if d else (None, "")
@@ -213,8 +221,7 @@ class FuzzRun:
                             "cycle: the run ends here")
             return
         try:
-            unit.dut.latched = None
-            unit.dut.settle()
+            unit.settle()
             points, outputs = unit.read_state()
         except (DeviceAbort, Unreadable) as exc:
             self.stopped = f"the unit did not come back after the finding: {exc}"

@@ -75,12 +75,14 @@ class Unit:
             self.dut.close()
             self.dut = self._open()
             return True
-        if self.ask is None or not self.ask("switch the unit off and on again, then press Enter "
-                                            "(q: stop shrinking)"):
-            return False
-        self.dut.gone = None
+        return self.ask is not None and self.ask("switch the unit off and on again, then press Enter "
+                                                 "(q: stop shrinking)")
+
+    def settle(self) -> None:
+        """Whatever was known of the alarm state, reset it and check the unit answers (DeviceAbort if
+        not): the start of every re-run and of the run after a finding."""
         self.dut.latched = None
-        return True
+        self.dut.settle()
 
     # ---- a case ----
 
@@ -124,9 +126,8 @@ class Unit:
 
     def _late(self, since: float) -> float | None:
         """Seconds from ``since`` to the first late byte, when one comes within LATE_FACTOR windows (at
-        least LATE_MIN_S); the
-        whole time is waited, so that every late answer (of the probe and of lines before it) is in the
-        transcript, and in a capture, where it came."""
+        least LATE_MIN_S); the whole time is waited, so that every late answer (of the probe and of the
+        lines before it) is in the transcript, and in a capture, where it came."""
         until = time.monotonic() + max(LATE_FACTOR * self.window, LATE_MIN_S)
         late = None
         while time.monotonic() < until:
