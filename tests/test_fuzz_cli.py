@@ -224,3 +224,18 @@ def test_a_wrong_answer_to_the_probe_is_an_answer_finding():
     finding = next(o for o in _jsonl(out) if o["type"] == "finding")
     assert finding["kind"] == "answer" and "'ORV100'" in finding["detail"], finding
     assert "letter-o" in finding["codes"]
+
+
+@pytest.mark.slow
+def test_allow_motion_mixes_in_moves_inside_the_safe_range():
+    """With --allow-motion and a safe range some cases are direct moves, each to a position inside the
+    range and answered by its echo; the run on the clean simulator still finds nothing."""
+    r = xac1("fuzz", "--allow-motion", "--safe-range", "0x100:0x2000", "--cases", "40", *FAST,
+             "--format", "jsonl")
+    assert r.returncode == 0, r.stderr
+    moves = [o for o in _jsonl(r.stdout) if o.get("generator") == "move"]
+    assert moves
+    for m in moves:
+        (line,) = m["input"]
+        assert line.startswith("0MV") and 0x100 <= int(line[6:12], 16) <= 0x2000, line
+        assert m["answer"] == line, m
