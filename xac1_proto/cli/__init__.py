@@ -52,6 +52,9 @@ COMMANDS: Final[dict[str, Subcommand]] = {
     "replay": Subcommand("sniffer.replay_cli",
                          "play a capture's host side against a controller (or the simulator) and show "
                          "where the answers differ"),
+    "fuzz": Subcommand("xac1_proto.cli.fuzz_cmd",
+                        "send hostile lines (never a move) to a controller (default: the simulator) and "
+                        "report what it does not stand up to"),
     "wireshark": Subcommand("sniffer.wireshark.wireshark_cmd",
                             "install the XA-C1 Wireshark dissector and extcap (install [--uninstall]), or "
                             "show its folders (path)"),

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Final
 
 from .. import spec
+from ..framer import MAX_FRAME
 from ..motion import DEFAULT_SPEEDS, SpeedTable
 
 # Bounds on times the simulator waits (a wait beyond them is a typo, not a test): non-finite or absurd
@@ -94,6 +95,16 @@ DEVIATIONS: Final[dict[str, tuple[str, str]]] = {
                       "Behaviour the vendor text states (reset clears all but 0E)"),
 }
 
+# name -> what a robust controller would not do: faults of robustness, switched on like a deviation
+# (``deviation=NAME``) but no stated rule's test: ``xac1 fuzz`` finds them (docs/fuzz.md). Each stays
+# until a power cycle (a new simulator).
+ROBUSTNESS: Final[dict[str, str]] = {
+    "hang-on-long-line": "a line longer than hang_bytes (default 40) hangs it: nothing more is answered",
+    "nul-corrupts-point": "a NUL byte in a line flips bit 8 of point 1's stored Pos",
+    "late-after-errors": "flood_errors (default 3) malformed lines in a row leave every answer 0.5 s late",
+}
+LATE_AFTER_ERRORS_S: Final = 0.5  # how late ``late-after-errors`` answers (not scaled by time_scale)
+
 
 @dataclass(frozen=True)
 class LineFaults:
@@ -140,6 +151,8 @@ class SimConfig:
     cm0_sticky: bool = False  # silent item 11 (True: mode 0 stays until the next 0CM1)
     faults: LineFaults = field(default_factory=LineFaults)
     deviations: frozenset[str] = frozenset()
+    hang_bytes: int = 40  # hang-on-long-line: longest line still answered (1..63, below the framer's limit)
+    flood_errors: int = 3  # late-after-errors: malformed lines in a row that make it late
 
     def __post_init__(self) -> None:
         if not (len(self.version) == 3 and self.version.isdigit() and self.version.isascii()):
@@ -150,9 +163,14 @@ class SimConfig:
         lo, hi = self.stroke
         if not 0 <= lo <= hi < spec.UNKNOWN_POSITION:
             raise ValueError(f"stroke must be LO:HI with 0 <= LO <= HI <= 0xFFFFFE, got {lo:#x}:{hi:#x}")
-        unknown = sorted(set(self.deviations) - set(DEVIATIONS))
+        unknown = sorted(set(self.deviations) - set(DEVIATIONS) - set(ROBUSTNESS))
         if unknown:
-            raise ValueError(f"unknown deviation {', '.join(unknown)}; known: {', '.join(DEVIATIONS)}")
+            raise ValueError(f"unknown deviation {', '.join(unknown)}; known: "
+                             f"{', '.join([*DEVIATIONS, *ROBUSTNESS])}")
+        if not 1 <= self.hang_bytes < MAX_FRAME:
+            raise ValueError(f"hang_bytes must be 1..{MAX_FRAME - 1}, got {self.hang_bytes}")
+        if self.flood_errors < 1:
+            raise ValueError(f"flood_errors must be a positive count, got {self.flood_errors}")
         object.__setattr__(self, "deviations", frozenset(self.deviations))
 
     def replace(self, **changes: object) -> SimConfig:
@@ -167,7 +185,9 @@ OPTIONS: Final[dict[str, str]] = {
     "version": "three digits, 0RV's answer (default 100)",
     "turnaround": "milliseconds (0..60000) from a command's last byte to its answer (default 2)",
     "stroke": "LO:HI positions a move may reach, decimal or 0x-hex (default 0:0xFFFFFE)",
-    "deviation": "a name from DEVIATIONS; repeat or comma-separate for several",
+    "deviation": "a name from DEVIATIONS or ROBUSTNESS; repeat or comma-separate for several",
+    "hang_bytes": "int 1..63; the longest line hang-on-long-line still answers (default 40)",
+    "flood_errors": "int >= 1; malformed lines in a row that make late-after-errors late (default 3)",
     "seed": "int; seeds the line faults",
     "noise": "probability a sent byte is corrupted",
     "drop": "probability a sent byte is lost",
@@ -236,6 +256,10 @@ def config_from_options(options: Mapping[str, str | Iterable[str]],
                 faults.setdefault("delay", 1.0)
             elif name == "delay_p":
                 faults["delay"] = parse_probability(value)
+            elif name in ("hang_bytes", "flood_errors"):
+                if not value.strip().isdigit():
+                    raise ValueError(f"expected a whole number, got {value!r}")
+                changes[name] = int(value)
             elif name.endswith("_alarm"):
                 changes[name] = int(value, 16)
             else:

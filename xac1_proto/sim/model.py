@@ -21,7 +21,8 @@ Fault injection (the spec-allowed faults a real device may show): ``raise_alarm`
 ``fail_next_move`` (09 limit switch at completion, 0B homing error, 0A pulse calculation),
 ``fail_next_memory`` (04 on the next 0WP/0WC, 06 on the next 0RP/0MP N), ``set_line_faults`` (see
 ``outbox``), ``slow_turnaround_s``. Deviations (rule breakers, ``config.DEVIATIONS``) are switched with
-``set_deviation``.
+``set_deviation``; so are the robustness faults (``config.ROBUSTNESS``: a hang on a long line, a NUL
+that corrupts a point, lateness after a flood of errors), which last until the model is made anew.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from .. import motion, spec
 from ..codec import diagnose, parse
 from ..errors import FrameError
 from ..framer import MAX_FRAME
-from .config import DEVIATIONS, LineFaults, SimConfig
+from .config import DEVIATIONS, LATE_AFTER_ERRORS_S, ROBUSTNESS, LineFaults, SimConfig
 from .deviations import spoil
 from .outbox import Outbox, Output
 
@@ -94,6 +95,9 @@ class DeviceModel:
         self._move_fault: int | None = None
         self._memory_fault: int | None = None
         self._segments: list[_Segment] = []
+        self.hung = False  # hang-on-long-line struck: nothing is answered any more
+        self.late_s = 0.0  # late-after-errors struck: every answer this much later
+        self._errors_in_row = 0
 
     # ---- bytes in ----
 
@@ -143,9 +147,25 @@ class DeviceModel:
         frame, violations = diagnose(line, spec.COMMAND)
         return frame if all(v.code == "lowercase-hex" for v in violations) else None
 
+    def _robustness(self, line: bytes, overflow: bool, malformed: bool) -> None:
+        """The robustness faults (``config.ROBUSTNESS``) a line sets off, when switched on."""
+        devs = self.config.deviations
+        if "hang-on-long-line" in devs and (overflow or len(line) > self.config.hang_bytes):
+            self.hung = True
+        if "nul-corrupts-point" in devs and b"\x00" in line:
+            p = self._point(1)
+            self.points[1] = PointData(p.v, p.a, p.o, p.pos ^ 0x100)
+            self.table_changes += 1
+        self._errors_in_row = self._errors_in_row + 1 if malformed else 0
+        if "late-after-errors" in devs and self._errors_in_row >= self.config.flood_errors:
+            self.late_s = LATE_AFTER_ERRORS_S
+
     def _command(self, line: bytes, t: float, overflow: bool) -> list[Output]:
         self.commands += 1
         frame = self._decode(line, overflow)
+        self._robustness(line, overflow, frame is None)
+        if self.hung:
+            return []
         if frame is None:
             self._update_mode(None)  # silent item 11: a malformed line is communication too
             code = self.latched or self.config.malformed_alarm
@@ -190,7 +210,7 @@ class DeviceModel:
         if isinstance(frame, fr.AlarmAnswer) and "alarm-not-latched" in cfg.deviations and not self.estop:
             self.alarm = None  # the deviation: answered once, then forgotten
         raw = spoil(frame, _wire(frame), cfg.deviations)
-        due = t + (cfg.turnaround_s + moving) * cfg.time_scale + self.slow_turnaround_s
+        due = t + (cfg.turnaround_s + moving) * cfg.time_scale + self.slow_turnaround_s + self.late_s
         return self.outbox.put(raw, due, cfg.wire_timing)
 
     def _echo(self, frame: fr.Frame, **changed: int) -> fr.Frame:
@@ -401,8 +421,8 @@ class DeviceModel:
         self.outbox.set_faults(faults)
 
     def set_deviation(self, name: str, on: bool = True) -> None:
-        if name not in DEVIATIONS:
-            raise ValueError(f"unknown deviation {name!r}; known: {', '.join(DEVIATIONS)}")
+        if name not in DEVIATIONS and name not in ROBUSTNESS:
+            raise ValueError(f"unknown deviation {name!r}; known: {', '.join([*DEVIATIONS, *ROBUSTNESS])}")
         devs = set(self.config.deviations)
         (devs.add if on else devs.discard)(name)
         self.config = dataclasses.replace(self.config, deviations=frozenset(devs))
