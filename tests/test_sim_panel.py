@@ -58,8 +58,8 @@ def test_the_line_is_judged_the_same_whatever_the_chunking(commands, deviation, 
         for a, b in zip([0, *cuts], [*cuts, len(data_)], strict=True):
             if a < b:
                 chunked.feed(float(k), direction, data_[a:b])
-    assert _codes(list(chunked.rows)) == _codes(list(whole.rows))
-    assert len(whole.rows) >= len(line)  # every frame or junk run has its row
+    assert _codes(chunked.rows()) == _codes(whole.rows())
+    assert len(whole.rows()) >= len(line)  # every frame or junk run has its row
 
 
 def test_the_host_mistakes_are_named_as_sniff_names_them():
@@ -69,7 +69,7 @@ def test_the_host_mistakes_are_named_as_sniff_names_them():
     for k, (direction, data) in enumerate(_line([b"ORV\r\n", b"0%C\r\n"], None)
                                            + _line([b"0RV\r\n"], "letter-o")):
         watch.feed(float(k), direction, data)
-    rows = list(watch.rows)
+    rows = watch.rows()
     host_o = rows[0]["violations"][0]
     seen = (rows[0]["dir"], host_o["code"], host_o["side"], host_o["severity"])
     assert seen == ("host", "letter-o", "host", "error")
@@ -200,6 +200,18 @@ def test_the_page_is_self_contained_and_the_feed_is_live(running):
         assert feed.headers["Content-Type"].startswith("text/event-stream")
         assert feed.readline() == b"event: state\n"
         assert json.loads(feed.readline().removeprefix(b"data: "))["estop"] is False
+
+
+def test_with_no_browser_the_engine_rests_and_the_history_waits(running):
+    """No one looks: the line's bytes are only kept (the engine does not run, so the simulator's thread
+    pays one append a chunk); the first look (``GET /api/line``) judges the kept history."""
+    port, panel = running
+    for command in (b"0RV\r\n", b"ORV\r\n"):
+        _transact(port, command)
+    rows = wait_until(lambda: len(_get(panel, "api/line")) >= 4 and _get(panel, "api/line"), TIMEOUT,
+                      "the four rows of two exchanges")
+    assert isinstance(rows, list) and rows[2]["violations"][0]["code"] == "letter-o"
+    wait_until(lambda: not panel.judging, TIMEOUT, "the engine to rest with no listener")
 
 
 def test_a_port_in_use_is_one_clear_error():

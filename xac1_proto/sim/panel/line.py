@@ -6,8 +6,9 @@ its own ``Framer`` and hands them, in the order seen, to one ``xac1_proto.conver
 missed answer comes out as ``no-answer``. Facts the line cannot show come from the control channel:
 ``stop_input`` and ``power_on`` pass them to the engine. Every verdict becomes a row (``Row``: plain
 data for the page, the bytes as typed, the decoded frame, and each violation with whose fault it is, its
-severity, its docs/protocol.md meaning and the engine's sentence, as ``xac1 sniff`` names them); the
-last ``keep`` rows are kept. A view only: the rules, the pairing and the sides are the engine's.
+severity, its docs/protocol.md meaning and the engine's sentence, as ``xac1 sniff`` names them). The
+last ``keep`` verdicts are kept and made rows only when asked (``rows``). A view only: the rules, the
+pairing and the sides are the engine's.
 """
 
 from __future__ import annotations
@@ -31,8 +32,8 @@ class LineWatch:
     def __init__(self, keep: int = KEEP) -> None:
         self.conversation = Conversation()
         self._framers = {spec.HOST_SIDE: Framer(), spec.DEVICE_SIDE: Framer()}
-        self.rows: deque[Row] = deque(maxlen=keep)
-        self.seen = 0  # rows made so far (the page asks for the rows after the last it has)
+        self._kept: deque[tuple[int, Verdict]] = deque(maxlen=keep)
+        self.seen = 0  # verdicts so far (the page asks for the rows after the last it has)
 
     def feed(self, t: float, direction: str, data: bytes) -> None:
         """Bytes ``direction`` ("host" or "device") put on the line, the last at ``t`` (unix seconds)."""
@@ -71,7 +72,11 @@ class LineWatch:
     def _take(self, verdicts: list[Verdict]) -> None:
         for verdict in verdicts:
             self.seen += 1
-            self.rows.append(row_of(verdict, self.seen))
+            self._kept.append((self.seen, verdict))
+
+    def rows(self, after: int = 0) -> list[Row]:
+        """The kept verdicts numbered above ``after``, as rows, oldest first."""
+        return [row_of(v, n) for n, v in self._kept if n > after]
 
 
 def row_of(v: Verdict, number: int) -> Row:

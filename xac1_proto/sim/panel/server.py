@@ -4,9 +4,12 @@ How it works: ``Panel(host, port)`` binds its socket at once (a port in use or a
 machine's is a ``PanelError`` before anything starts). ``tap`` is the simulator's ``on_traffic`` hook
 and ``fact`` its control channel's (``control.ControlChannel``): both only append to a deque, in the
 simulator's thread, so the pty round trip pays one append. ``start(sim, control)`` runs a Starlette app
-under uvicorn on an event loop of its own thread. There a pump wakes every ``POLL_S``: it hands the
-deque's bytes and facts to the line's engine (``line.LineWatch``) and, while a browser listens, reads
-the device state under the simulator's lock and sends what changed on the live feed.
+under uvicorn on an event loop of its own thread. There a pump wakes every ``POLL_S`` and moves the
+deque into ``HISTORY``, the line's recent past. The line is judged (``line.LineWatch``, the one
+rulebook) only while someone looks: the first listener, or a ``GET /api/line``, judges the history
+from its first host line on, then the pump judges what comes while a browser listens, reads the device
+state under the simulator's lock and sends what changed on the live feed. With no browser the engine
+does not run, so it takes nothing from the simulator's thread.
 
 The API: ``GET /`` the page (self-contained: no file from elsewhere, it works offline); ``GET
 /api/state`` the device state (``state.state_of``); ``GET /api/line`` the last exchanges with their
@@ -44,6 +47,7 @@ if TYPE_CHECKING:
     from ..runner import RunningSim
 
 POLL_S: Final = 0.1  # how often the pump looks at the deque and, while a browser listens, at the state
+HISTORY: Final = 4096  # chunks and facts of the line kept for a browser that comes
 MAX_COMMAND: Final = 200  # characters a control command may have
 STOP_WAIT_S: Final = 5.0
 
@@ -68,6 +72,16 @@ def bind(host: str, port: int, flag: str = "--panel") -> socket.socket:
         raise PanelError(f"{where}: cannot listen there ({exc.strerror or exc})") from None
 
 
+def _judge(watch: LineWatch, item: tuple[Any, ...]) -> None:
+    """One inbox item to the engine: bytes of the line, or a fact of the control channel."""
+    if item[0] == "bytes":
+        watch.feed(*item[1:])
+    elif item[0] == "stop-input":
+        watch.stop_input(*item[1:])
+    else:
+        watch.power_on()
+
+
 def _sse(event: str, data: object) -> str:
     return f"event: {event}\ndata: {json.dumps(data, separators=(',', ':'))}\n\n"
 
@@ -80,8 +94,9 @@ class Panel:
         self.host, self.port = self._socket.getsockname()[:2]
         shown = f"[{self.host}]" if ":" in self.host else self.host
         self.url = f"http://{shown}:{self.port}/"
-        self.watch = LineWatch()
+        self._watch: LineWatch | None = None  # the line judged, while someone looks
         self._inbox: deque[tuple[Any, ...]] = deque()  # ("bytes", t, dir, data) or a control Fact
+        self._history: deque[tuple[Any, ...]] = deque(maxlen=HISTORY)
         self._listeners: set[asyncio.Queue[str | None]] = set()
         self._state: dict[str, Any] | None = None  # the state last sent on the feed
         self._sent = 0  # rows sent on the feed
@@ -147,29 +162,44 @@ class Panel:
             queue.put_nowait(None)  # the feeds end, so the server stops at once
 
     def _step(self) -> None:
-        """The inbox to the engine; what changed to the listeners."""
-        watch, inbox = self.watch, self._inbox
+        """The inbox to the history (and to the engine while someone looks); what changed to the
+        listeners."""
+        inbox, watch = self._inbox, self._watch
         while inbox:
             item = inbox.popleft()
-            if item[0] == "bytes":
-                watch.feed(*item[1:])
-            elif item[0] == "stop-input":
-                watch.stop_input(*item[1:])
-            else:
-                watch.power_on()
-        watch.tick(time.time())
+            self._history.append(item)
+            if watch is not None:
+                _judge(watch, item)
         if not self._listeners:
+            self._watch = None  # no one looks: the engine rests
             return
+        watch = self.watch()
         state = self.state()
         if state != self._state:
             self._state = state
             self._send(_sse("state", state))
         if watch.seen != self._sent:
-            self._send(_sse("line", self._rows_after(self._sent)))
+            self._send(_sse("line", watch.rows(self._sent)))
             self._sent = watch.seen
 
-    def _rows_after(self, n: int) -> list[dict[str, Any]]:
-        return [row for row in self.watch.rows if row["n"] > n]
+    @property
+    def judging(self) -> bool:
+        """Is the engine judging the line now (only while someone looks)?"""
+        return self._watch is not None
+
+    def watch(self) -> LineWatch:
+        """The line judged up to now: the history judged from its first host line, when no one looked."""
+        if self._watch is None:
+            self._watch, self._sent = LineWatch(), 0
+            history = iter(self._history)
+            for item in history:
+                if item[0] == "bytes" and item[2] == "host":
+                    _judge(self._watch, item)
+                    break
+            for item in history:
+                _judge(self._watch, item)
+        self._watch.tick(time.time())
+        return self._watch
 
     def _send(self, message: str) -> None:
         for queue in self._listeners:
@@ -191,7 +221,7 @@ class Panel:
 
     async def _get_line(self, request: Request) -> Response:
         self._step()
-        return JSONResponse(list(self.watch.rows))
+        return JSONResponse(self.watch().rows())
 
     async def _post_control(self, request: Request) -> Response:
         assert self._control is not None
@@ -210,9 +240,10 @@ class Panel:
     async def _feed(self, request: Request) -> Response:
         queue: asyncio.Queue[str | None] = asyncio.Queue()
         self._step()
-        first = _sse("state", self.state()) + _sse("line", list(self.watch.rows))
+        watch = self.watch()
+        first = _sse("state", self.state()) + _sse("line", watch.rows())
         self._listeners.add(queue)
-        self._state = None  # the next step sends the state to everyone again: cheap, and never stale
+        self._sent = watch.seen
 
         async def stream() -> AsyncIterator[str]:
             try:
