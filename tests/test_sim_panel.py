@@ -135,8 +135,9 @@ def _get(panel: Panel, path: str) -> object:
         return json.load(r)
 
 
-def _post(panel: Panel, command: str) -> tuple[int, dict]:
-    request = urllib.request.Request(panel.url + "api/control", data=command.encode(), method="POST")
+def _post(panel: Panel, command: str, headers: dict[str, str] | None = None) -> tuple[int, dict]:
+    request = urllib.request.Request(panel.url + "api/control", data=command.encode(), method="POST",
+                                     headers=headers or {})
     try:
         with urllib.request.urlopen(request, timeout=TIMEOUT) as r:
             return r.status, json.load(r)
@@ -166,6 +167,17 @@ def test_the_api_controls_the_device_the_host_talks_to(running):
     assert status == 400 and "not replaying a capture" in body["error"]
     assert _post(panel, "estop off")[1]["result"] == "emergency stop off"
     assert _transact(port, b"0RV\r\n") == b"0RV100\r\n"
+
+
+def test_a_page_of_another_origin_may_not_control_it(running):
+    """A web page elsewhere cannot drive the simulator through the user's browser: a control request
+    with another Origin is refused (403) and changes nothing; the panel's own origin is served."""
+    port, panel = running
+    status, body = _post(panel, "estop on", {"Origin": "http://evil.example"})
+    assert status == 403 and "may not control" in body["error"]
+    assert _transact(port, b"0RV\r\n") == b"0RV100\r\n"
+    own = panel.url.rstrip("/")
+    assert _post(panel, "estop on", {"Origin": own})[0] == 200
 
 
 def test_the_stop_input_reaches_the_engine(running):

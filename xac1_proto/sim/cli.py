@@ -252,6 +252,8 @@ class Run:
     def close_panel(self) -> None:
         if self.panel is not None:
             self.panel.close()
+            if self.panel.error is not None:  # the page went away before the simulator: said, not fatal
+                print(f"xac1 sim: error: the front panel stopped: {self.panel.error!r}", file=sys.stderr)
 
     def close(self, died: bool) -> bool:
         """End the panel, save the table (unless the simulator died) and close the log; False when

@@ -15,8 +15,9 @@ The API: ``GET /`` the page (self-contained: no file from elsewhere, it works of
 /api/state`` the device state (``state.state_of``); ``GET /api/line`` the last exchanges with their
 verdicts; ``POST /api/control`` a control command's text (the stdin channel's commands, through the same
 ``ControlChannel``), answered ``{"ok": true, "command", "result"}`` or 400 ``{"ok": false, "command",
-"error"}``; ``GET /api/feed`` Server-Sent Events: ``state`` (the whole state, at once and on every
-change) and ``line`` (new rows).
+"error"}`` (403 when a page of another origin sends it: a web page elsewhere must not drive it);
+``GET /api/feed`` Server-Sent Events: ``state`` (the whole state, at once and on every change) and
+``line`` (new rows).
 """
 
 from __future__ import annotations
@@ -225,6 +226,11 @@ class Panel:
 
     async def _post_control(self, request: Request) -> Response:
         assert self._control is not None
+        origin = request.headers.get("origin")
+        if origin is not None and origin != f"{request.url.scheme}://{request.headers.get('host')}":
+            error = (f"a page of {origin} may not control the simulator (only the panel's own page, or a "
+                     "client that sends no Origin)")
+            return JSONResponse({"ok": False, "command": "", "error": error}, status_code=403)
         command = (await request.body()).decode("utf-8", "replace").strip()
         if len(command) > MAX_COMMAND or "\n" in command:
             return JSONResponse({"ok": False, "command": command[:MAX_COMMAND],
