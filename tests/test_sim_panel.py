@@ -181,14 +181,14 @@ def test_a_page_of_another_origin_may_not_control_it(running):
 
 
 def test_the_stop_input_reaches_the_engine(running):
-    """The panel's line view hears the stop input from the control channel: after a press and a release
-    (the latch cleared by the release, silent item 3) the device's normal answer is clean, not a
-    ``latch-broken`` the engine would see if it knew only the line."""
+    """The panel's line view hears the stop input from the control channel, which the line cannot show:
+    with the stop pressed, a device that answers a reset ``0%C00`` (the ``estop-cleared`` deviation) is
+    named for it (silent item 3), where the bytes alone would not tell; the stop's own answers are clean."""
     port, panel = running
+    assert _post(panel, "deviation estop-cleared on")[0] == 200
     _post(panel, "estop on")
     assert _transact(port, b"0RV\r\n") == b"0%%0E\r\n"
-    _post(panel, "estop off")
-    assert _transact(port, b"0RV\r\n") == b"0RV100\r\n"
+    assert _transact(port, b"0%C\r\n") == b"0%C00\r\n"
 
     def answers() -> list[dict]:
         rows = _get(panel, "api/line")
@@ -196,8 +196,9 @@ def test_the_stop_input_reaches_the_engine(running):
         return [r for r in rows if r["dir"] == "device"]
 
     rows = wait_until(lambda: len(answers()) >= 2 and answers(), TIMEOUT, "both answers on the line")[-2:]
-    assert [r["raw"] for r in rows] == ["'0%%0E' CR LF", "'0RV100' CR LF"]
-    assert all(r["violations"] == [] for r in rows)
+    assert [r["raw"] for r in rows] == ["'0%%0E' CR LF", "'0%C00' CR LF"]
+    assert rows[0]["violations"] == []
+    assert [(v["code"], v["side"]) for v in rows[1]["violations"]] == [("estop-cleared", "device")]
 
 
 def test_the_page_is_self_contained_and_the_feed_is_live(running):

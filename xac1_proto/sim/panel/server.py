@@ -189,16 +189,15 @@ class Panel:
         return self._watch is not None
 
     def watch(self) -> LineWatch:
-        """The line judged up to now: the history judged from its first host line, when no one looked."""
+        """The line judged up to now: the history judged from its first host line (the facts before it
+        too), when no one looked."""
         if self._watch is None:
             self._watch, self._sent = LineWatch(), 0
-            history = iter(self._history)
-            for item in history:
-                if item[0] == "bytes" and item[2] == "host":
+            host_seen = False
+            for item in self._history:
+                host_seen = host_seen or item[:1] == ("bytes",) and item[2] == "host"
+                if host_seen or item[0] != "bytes":  # an answer whose command is gone is left out
                     _judge(self._watch, item)
-                    break
-            for item in history:
-                _judge(self._watch, item)
         self._watch.tick(time.time())
         return self._watch
 
