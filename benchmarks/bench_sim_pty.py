@@ -5,12 +5,16 @@ the slave; the baseline thread echoes the bytes back untouched, the simulator pa
 the device model and builds the 16-byte answer. The figure that matters is the ratio of the medians
 (target: at most 2x), not the absolute times, which depend on the machine.
 
-Run: ``python benchmarks/bench_sim_pty.py [--rounds N]``
+``--panel``: the simulator runs with its front panel served beside it (``xac1 sim --panel``: every byte
+tapped for the panel's line view, its server in its own thread), no browser connected.
+
+Run: ``python benchmarks/bench_sim_pty.py [--rounds N] [--panel]``
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import select
 import statistics
@@ -20,7 +24,7 @@ import tty
 
 import serial
 
-from xac1_proto.sim import SimConfig, serve_pty
+from xac1_proto.sim import SimConfig, control, serve_pty
 
 COMMAND = b"0RP3\r\n"
 
@@ -66,6 +70,7 @@ def round_trips(path: str, rounds: int, answer_len: int) -> list[float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=2000)
+    parser.add_argument("--panel", action="store_true", help="serve the front panel too (no browser)")
     args = parser.parse_args()
 
     echo = EchoPty()
@@ -74,7 +79,15 @@ def main() -> None:
         base = round_trips(echo.path, args.rounds, len(COMMAND))
     finally:
         echo.close()
-    with serve_pty(SimConfig(time_scale=0)) as sim:
+    with contextlib.ExitStack() as stack:
+        panel = None
+        if args.panel:
+            from xac1_proto.sim.panel.server import Panel, panel_for
+
+            panel = Panel()
+        sim = stack.enter_context(serve_pty(SimConfig(time_scale=0), on_traffic=panel.tap if panel else None))
+        if panel is not None:
+            stack.enter_context(panel_for(sim, panel, control.ControlChannel(sim, panel.fact)))
         with serial.Serial(sim.path, 9600, timeout=2) as port:
             port.write(b"0WP39302012345\r\n")
             port.read(16)
@@ -82,7 +95,8 @@ def main() -> None:
         simulated = round_trips(sim.path, args.rounds, 16)
     b, s = statistics.median(base), statistics.median(simulated)
     print(f"bare pty echo      median {b * 1e6:8.1f} us  ({args.rounds} rounds)")
-    print(f"simulator 0RP3     median {s * 1e6:8.1f} us  (instant mode)")
+    served = ", front panel served" if args.panel else ""
+    print(f"simulator 0RP3     median {s * 1e6:8.1f} us  (instant mode{served})")
     print(f"ratio simulator / echo: {s / b:.2f}x  (target <= 2x)")
 
 

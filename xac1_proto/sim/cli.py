@@ -17,17 +17,19 @@ written); 2 bad options or a signal before it was serving.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import select
 import sys
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final
 
 if TYPE_CHECKING:
     from ..recording import ChunkWriter
     from ..signals import OrderlyEnd
     from .model import DeviceModel
-    from .outbox import Output
+    from .panel.server import Panel
     from .runner import RunningSim
 
 HELP = "run the XA-C1 device simulator on a pseudo-terminal or a TCP port"
@@ -62,12 +64,15 @@ def _dest(flag: str) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    where = parser.add_mutually_exclusive_group(required=True)
+    where = parser.add_mutually_exclusive_group()  # one is needed, but not by --deviation list
     where.add_argument("--pty", action="store_true",
                        help="serve on a new pseudo-terminal (path printed first)")
     where.add_argument("--tcp", metavar="[HOST:]PORT",
                        help="serve pyserial socket:// clients (HOST default 127.0.0.1; one client at a time)")
     parser.add_argument("--link", metavar="PATH", help="with --pty: a symlink to the device path")
+    parser.add_argument("--panel", metavar="[HOST:]PORT",
+                        help="also serve the front panel, a web page (HOST default 127.0.0.1; needs the "
+                             "panel extra: pip install 'xac1-proto[panel]')")
     for flag, (_, kwargs) in FLAGS.items():
         parser.add_argument(flag, dest=_dest(flag), **kwargs)
     parser.add_argument("--state", metavar="FILE", help="keep the position table in FILE across runs")
@@ -109,14 +114,15 @@ def _options(args: argparse.Namespace) -> dict[str, list[str]]:
     return opts
 
 
-def _tcp_address(text: str) -> tuple[str, int]:
+def _address(text: str, flag: str) -> tuple[str, int]:
+    """``[HOST:]PORT`` (HOST default 127.0.0.1; ``[::1]:PORT`` for IPv6) of ``--tcp`` or ``--panel``."""
     host, sep, port = text.rpartition(":")
     try:
         number = int(port)
     except ValueError:
-        raise ValueError(f"--tcp {text!r}: expected [HOST:]PORT with a numeric port") from None
+        raise ValueError(f"{flag} {text!r}: expected [HOST:]PORT with a numeric port") from None
     if not 0 <= number <= 65535:
-        raise ValueError(f"--tcp {text!r}: port must be 0..65535")
+        raise ValueError(f"{flag} {text!r}: port must be 0..65535")
     return (host.strip("[]") if sep and host else "127.0.0.1"), number
 
 
@@ -136,6 +142,15 @@ def open_log(path: str, source: str) -> ChunkWriter:
 def run(args: argparse.Namespace) -> int:
     from ..signals import EXIT_EARLY, Interrupted, OrderlyEnd
 
+    if args.opt_deviation == ["list"]:  # a list needs no transport, nor anything else
+        from .config import DEVIATIONS
+
+        for name, (rule, section) in DEVIATIONS.items():
+            print(f"{name:28} {rule} [docs/protocol.md: {section}]")
+        return EXIT_OK
+    problem = _usage_problem(args)
+    if problem:
+        return _fail(problem)
     what = "stopping the simulator" + (" and writing the state file" if args.state else "")
     with OrderlyEnd("xac1 sim", what) as end:
         try:
@@ -147,106 +162,163 @@ def run(args: argparse.Namespace) -> int:
             return EXIT_EARLY
 
 
-def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
-    from ..chunk import Chunk
-    from ..errors import XAC1Error
-    from ..output_file import check_output
-    from .config import DEVIATIONS, config_from_options
-    from .model import DeviceModel
-    from .replaying import ReplayingDevice, load_script
-    from .runner import serve_pty, serve_tcp
-    from .state import load_state, save_state
-
-    if args.opt_deviation == ["list"]:
-        for name, (rule, section) in DEVIATIONS.items():
-            print(f"{name:28} {rule} [docs/protocol.md: {section}]")
-        return EXIT_OK
+def _usage_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with the options' combination, or None."""
+    if not (args.pty or args.tcp):
+        return "one of the arguments --pty --tcp is required"
     if args.link and not args.pty:
-        return _fail("--link goes with --pty")
-    replaying = args.replay is not None
-    if not replaying and (args.replay_strict or args.replay_format != "auto" or args.replay_host_is):
-        return _fail("--replay-strict, --replay-format and --replay-host-is go with --replay CAPTURE")
-    try:
-        config = config_from_options(_options(args))
-        address = _tcp_address(args.tcp) if args.tcp else None
+        return "--link goes with --pty"
+    if args.replay is None and (args.replay_strict or args.replay_format != "auto" or args.replay_host_is):
+        return "--replay-strict, --replay-format and --replay-host-is go with --replay CAPTURE"
+    return None
+
+
+class Run:
+    """What one ``xac1 sim`` run holds beside the simulator: the model it serves, the ``--log`` writer,
+    the ``--state`` file and the front panel. Built from the options, each checked before anything
+    starts (``ValueError`` or ``XAC1Error`` saying what is wrong); ``close`` ends them in order."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        from .config import config_from_options
+        from .model import DeviceModel
+        from .replaying import ReplayingDevice, load_script
+        from .state import load_state
+
+        self.args = args
+        self.config = config_from_options(_options(args))
+        self.address = _address(args.tcp, "--tcp") if args.tcp else None
+        panel_at = _address(args.panel, "--panel") if args.panel else None
         if args.state:  # a regular file (or a link to one), checked before anything starts
+            from ..output_file import check_output
+
             check_output(args.state, "--state")
         points = load_state(args.state) if args.state else {}
-        script = load_script(args.replay, args.replay_format, args.replay_host_is) if replaying else None
-    except (ValueError, XAC1Error) as exc:
-        return _fail(str(exc))
-    if script is not None:
-        model: DeviceModel = ReplayingDevice(script, config, strict=args.replay_strict, points=points,
-                                             on_note=lambda note: _say_replay(note, writer))
-        print(f"xac1 sim: replaying {len(script)} captured host lines of {', '.join(args.replay)}"
-              f"{' (strict)' if args.replay_strict else ''}", file=sys.stderr, flush=True)
-    else:
-        model = DeviceModel(config, points)
-    if args.estop:
-        model.set_estop(True)
-
-    save_errors: list[str] = []
-
-    def save(m: DeviceModel) -> None:
-        try:
-            save_state(args.state, m.points)
-        except (OSError, ValueError) as exc:  # ValueError: OutputFileError, it is no longer a file
-            save_errors.append(str(exc))
-            print(f"xac1 sim: error: cannot write the state file {args.state}: {exc}", file=sys.stderr)
-
-    writer = None
-    if args.log:
-        try:
+        self.writer: ChunkWriter | None = None
+        self.save_errors: list[str] = []
+        if args.replay is not None:
+            script = load_script(args.replay, args.replay_format, args.replay_host_is)
+            self.model: DeviceModel = ReplayingDevice(
+                script, self.config, strict=args.replay_strict, points=points,
+                on_note=lambda note: _say_replay(note, self.writer))
+            print(f"xac1 sim: replaying {len(script)} captured host lines of {', '.join(args.replay)}"
+                  f"{' (strict)' if args.replay_strict else ''}", file=sys.stderr, flush=True)
+        else:
+            self.model = DeviceModel(self.config, points)
+        if args.estop:
+            self.model.set_estop(True)
+        self.panel = _open_panel(*panel_at) if panel_at else None
+        if args.log:
             port = f"--pty{f' --link {args.link}' if args.link else ''}" if args.pty else f"--tcp {args.tcp}"
-            settings = f"time scale {config.time_scale}, wire timing {'on' if config.wire_timing else 'off'}"
-            writer = open_log(args.log, f"xac1 sim {port} ({settings})")
-        except OSError as exc:
-            return _fail(f"cannot write the log {args.log}: {exc.strerror or exc}")
-
-    def on_traffic(direction: str, data: bytes) -> None:
-        if writer is not None:
+            settings = (f"time scale {self.config.time_scale}, "
+                        f"wire timing {'on' if self.config.wire_timing else 'off'}")
             try:
-                writer.write(Chunk(time.time(), direction, data))  # type: ignore[arg-type]
+                self.writer = open_log(args.log, f"xac1 sim {port} ({settings})")
             except OSError as exc:
-                raise RuntimeError(f"cannot write the log {args.log}: {exc.strerror or exc}") from None
+                self.close_panel()
+                raise ValueError(f"cannot write the log {args.log}: {exc.strerror or exc}") from None
+
+    def on_traffic(self, direction: str, data: bytes) -> None:
+        """The simulator's bytes both ways (its thread): to the log and the panel."""
+        if self.writer is not None:
+            from ..chunk import Chunk
+
+            try:
+                self.writer.write(Chunk(time.time(), direction, data))  # type: ignore[arg-type]
+            except OSError as exc:
+                raise RuntimeError(f"cannot write the log {self.args.log}: {exc.strerror or exc}") from None
+        if self.panel is not None:
+            self.panel.tap(direction, data)
+
+    def save(self, model: DeviceModel) -> None:
+        """The position table to ``--state`` (on every change, and at the end)."""
+        from .state import save_state
+
+        try:
+            save_state(self.args.state, model.points)
+        except (OSError, ValueError) as exc:  # ValueError: OutputFileError, it is no longer a file
+            self.save_errors.append(str(exc))
+            print(f"xac1 sim: error: cannot write the state file {self.args.state}: {exc}", file=sys.stderr)
+
+    def serve(self) -> contextlib.AbstractContextManager[RunningSim]:
+        """The simulator on its pty or TCP port (OSError when it cannot start)."""
+        from .runner import serve_pty, serve_tcp
+
+        hooks: dict[str, Any] = {"model": self.model, "on_traffic": self.on_traffic,
+                                 "on_table_change": self.save if self.args.state else None}
+        if self.address is None:
+            return serve_pty(link=self.args.link, **hooks)
+        return serve_tcp(host=self.address[0], port=self.address[1], **hooks)
+
+    def close_panel(self) -> None:
+        if self.panel is not None:
+            self.panel.close()
+            if self.panel.error is not None:  # the page went away before the simulator: said, not fatal
+                print(f"xac1 sim: error: the front panel stopped: {self.panel.error!r}", file=sys.stderr)
+
+    def close(self, died: bool) -> bool:
+        """End the panel, save the table (unless the simulator died) and close the log; False when
+        something could not be written."""
+        self.close_panel()
+        if self.args.state and not died:
+            self.save(self.model)  # the last word: the table as the run left it
+        if self.writer is not None:
+            try:
+                self.writer.close()
+            except OSError as exc:
+                print(f"xac1 sim: error: cannot write the log {self.args.log}: {exc}", file=sys.stderr)
+                return False
+        return not self.save_errors
+
+
+def _open_panel(host: str, port: int) -> Panel:
+    """The front panel's server, bound (``ValueError`` naming the address when it cannot be, or when
+    the panel extra is not installed)."""
+    try:
+        from .panel.server import Panel, PanelError
+    except ImportError as exc:
+        raise ValueError(f"--panel needs the panel extra (pip install 'xac1-proto[panel]'): {exc}") from None
+    try:
+        return Panel(host, port)
+    except PanelError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
+    from ..errors import XAC1Error
+    from .control import ControlChannel
 
     try:
-        if args.pty:
-            ctx = serve_pty(model=model, link=args.link, on_traffic=on_traffic,
-                            on_table_change=save if args.state else None)
-        else:
-            assert address is not None
-            ctx = serve_tcp(model=model, host=address[0], port=address[1], on_traffic=on_traffic,
-                            on_table_change=save if args.state else None)
+        parts = Run(args)
+    except (ValueError, XAC1Error) as exc:
+        return _fail(str(exc))
+    try:
+        ctx = parts.serve()
         sim = ctx.__enter__()
     except OSError as exc:
-        if writer is not None:
-            writer.close()
+        parts.close(died=True)
         return _fail(f"cannot start the simulator: {exc}")
     died = False
     try:
         end.begin()  # serving from here: a signal now ends it in order
+        control = ControlChannel(sim, parts.panel.fact if parts.panel else None)
         print(sim.url, flush=True)
+        if parts.panel is not None:
+            parts.panel.start(sim, control)
+            print(f"xac1 sim: front panel at {parts.panel.url}", file=sys.stderr, flush=True)
         print("xac1 sim: running; type 'help' for control commands, Ctrl-C to stop", file=sys.stderr,
               flush=True)
-        died = _control_loop(sim, end)
+        died = _control_loop(sim, end, control)
     finally:
         end.ending()
+        parts.close_panel()
         try:
             ctx.__exit__(None, None, None)
         except RuntimeError:
             died = True  # said below
         if died:
             print(f"xac1 sim: error: the simulator stopped: {_reason(sim.server.error)}", file=sys.stderr)
-        if args.state and not died:
-            save(model)  # the last word: the table as the run left it
-        if writer is not None:
-            try:
-                writer.close()
-            except OSError as exc:
-                print(f"xac1 sim: error: cannot write the log {args.log}: {exc}", file=sys.stderr)
-                died = True
-    return EXIT_FAILED if died or save_errors else EXIT_OK
+        written = parts.close(died)
+    return EXIT_FAILED if died or not written else EXIT_OK
 
 
 def _say_replay(note: str, log: ChunkWriter | None) -> None:
@@ -266,11 +338,9 @@ def _reason(error: BaseException | None) -> str:
     return repr(error)
 
 
-def _control_loop(sim: RunningSim, end: OrderlyEnd, stdin_fd: int = 0) -> bool:
-    """Run control commands from ``stdin_fd`` until a signal (``end.stop``), the end of stdin on a
-    terminal, or the simulator's loop dies; True in that last case."""
-    from . import control
-
+def _control_loop(sim: RunningSim, end: OrderlyEnd, control: Callable[[str], str], stdin_fd: int = 0) -> bool:
+    """Run control commands from ``stdin_fd`` through ``control`` until a signal (``end.stop``), the end
+    of stdin on a terminal, or the simulator's loop dies; True in that last case."""
     pending = b""
     stdin_open = True
     while not end.stop.is_set():
@@ -300,13 +370,8 @@ def _control_loop(sim: RunningSim, end: OrderlyEnd, stdin_fd: int = 0) -> bool:
         pending += data
         *lines, pending = pending.split(b"\n")
         for raw in lines:
-            line = raw.decode("utf-8", "replace")
-
-            def apply(model: DeviceModel, now: float, line: str = line) -> tuple[str, list[Output]]:
-                return control.apply(model, line, now)
-
             try:
-                text, _ = sim.call(apply)
+                text = control(raw.decode("utf-8", "replace"))
             except ValueError as exc:
                 text = f"error: {exc}"
             if text:

@@ -1,9 +1,10 @@
 """Control commands typed on the running simulator's stdin (``xac1 sim``): parse a line, apply it to the
-model, return the text to print. No I/O here; the CLI calls ``apply`` under the simulator's lock.
+model, return the text to print. No I/O here: ``ControlChannel`` runs a line on a running simulator
+under its lock (``RunningSim.call``), for the stdin channel and the front panel alike.
 
-Commands: ``help``, ``status``, ``estop on|off``, ``alarm CODE``, ``fault CODE`` (09, 0B, 0A: next move;
-04, 06: next memory access), ``noise P``, ``drop P``, ``delay MS [P]``, ``seed N``, ``slow MS``,
-``deviation [NAME [on|off]]``, ``replay`` (where a ``--replay`` run stands in its capture).
+Commands: ``help``, ``status``, ``estop on|off``, ``power``, ``alarm CODE``, ``fault CODE`` (09, 0B,
+0A: next move; 04, 06: next memory access), ``noise P``, ``drop P``, ``delay MS [P]``, ``seed N``,
+``slow MS``, ``deviation [NAME [on|off]]``, ``replay`` (where a ``--replay`` run stands in its capture).
 """
 
 from __future__ import annotations
@@ -11,11 +12,14 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 from .. import spec
 from .config import DEVIATIONS, MAX_WAIT_MS, parse_ms, parse_probability
 from .model import MEMORY_FAULTS, MOVE_FAULTS, DeviceModel, Output
+
+if TYPE_CHECKING:
+    from .runner import RunningSim
 
 
 def _code(text: str) -> int:
@@ -68,7 +72,12 @@ class Control:
 
 def _estop(model: DeviceModel, args: list[str], t: float) -> Result:
     on = _on_off(args[0])
-    return f"emergency stop {'ON' if on else 'off'}", model.set_estop(on, t)
+    already = " (it already was)" if model.estop == on else ""
+    return f"emergency stop {'ON' if on else 'off'}{already}", model.set_estop(on, t)
+
+
+def _power(model: DeviceModel, args: list[str], t: float) -> Result:
+    return "power-cycled: not homed, mode 0, OUT ports off, the position table kept", model.power_cycle()
 
 
 def _alarm(model: DeviceModel, args: list[str], t: float) -> Result:
@@ -85,7 +94,7 @@ def _fault(model: DeviceModel, args: list[str], t: float) -> Result:
     if code in MEMORY_FAULTS:
         model.fail_next_memory(code)
         return f"next memory access fails with {code:02X} ({spec.alarm_meaning(code)})", []
-    raise ValueError(f"fault CODE: one of 09 0B 0A (moves) or 04 06 (memory), got {args[0]}")
+    raise ValueError(f"one of 09 0B 0A (moves) or 04 06 (memory), got {args[0]}")
 
 
 def _line_faults(model: DeviceModel, changes: dict[str, object]) -> Result:
@@ -137,6 +146,7 @@ CONTROLS: Final[dict[str, Control]] = {
     "status": Control("status", "show the device state", (0,),
                       lambda m, a, t: (status_text(m, t), [])),
     "estop": Control("estop on|off", "emergency stop input (on: every answer becomes 0%%0E)", (1,), _estop),
+    "power": Control("power", "switch the unit off and on (the position table is kept)", (0,), _power),
     "alarm": Control("alarm CODE", "latch an alarm now (hex: 04 06 08 09 0A 0B 0E ...)", (1,), _alarm),
     "fault": Control("fault CODE", "next move fails (09 limit, 0B homing, 0A pulse) or memory access "
                      "(04, 06)", (1,), _fault),
@@ -175,3 +185,32 @@ def apply(model: DeviceModel, line: str, t: float) -> Result:
         return control.run(model, args, t)
     except ValueError as exc:
         raise ValueError(f"{control.usage}: {exc}") from None
+
+
+# What a control command did that the line cannot show, for an engine that judges the line:
+# ("stop-input", pressed, the axis must home again after the release) or ("power-on",).
+Fact = tuple[object, ...]
+
+
+class ControlChannel:
+    """Command text in, the text to show out, on a running simulator: the one way the stdin channel and
+    the front panel change the device. ``on_fact`` hears what a command did that the line cannot show
+    (the stop input changed, the unit was power-cycled). ValueError for a command that cannot apply."""
+
+    def __init__(self, sim: RunningSim, on_fact: Callable[[Fact], None] | None = None) -> None:
+        self.sim = sim
+        self.on_fact = on_fact
+
+    def __call__(self, line: str) -> str:
+        def run(model: DeviceModel, now: float) -> str:
+            estop, cycles = model.estop, model.power_cycles
+            text, _ = apply(model, line, now)
+            if self.on_fact is not None:  # under the lock: in order with the line's bytes
+                if model.power_cycles != cycles:
+                    self.on_fact(("power-on",))
+                if model.estop != estop:
+                    self.on_fact(("stop-input", model.estop, model.config.estop_rehome))
+            return text
+
+        text: str = self.sim.call(run)
+        return text

@@ -89,6 +89,7 @@ class DeviceModel:
         self.table_changes = 0  # bumps whenever the position table changes (for state files)
         self.commands = 0
         self.discarded = 0  # bytes thrown away during moves
+        self.power_cycles = 0  # times ``power_cycle`` switched it off and on
         self.outbox = Outbox(self.config.faults)
         self._line = bytearray()
         self._line_overflow = False
@@ -402,6 +403,18 @@ class DeviceModel:
             self.busy_until = t
             self._segments = []
             return [self._send(fr.AlarmAnswer(code=spec.ALARM_ESTOP), t)]
+        return []
+
+    def power_cycle(self) -> list[Output]:
+        """Switch the unit off and on: the power-on state (not homed, position unknown, mode 0, OUT ports
+        off, nothing latched but a pressed stop input); a move, a partial line and unsent answers are
+        lost. The position table is kept (it is the controller's memory), and so is what the bench set:
+        the stop input, line faults, pending faults, deviations."""
+        self.homed, self.position, self.mode, self.outputs, self.alarm = False, None, 0, 0, None
+        self.busy_until = float("-inf")
+        self._segments = []
+        self.reset_line()
+        self.power_cycles += 1
         return []
 
     def fail_next_move(self, code: int) -> None:
