@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 import struct
 import subprocess
@@ -217,6 +218,29 @@ def test_dissector_equals_decoder_frame_by_frame(tmp_path):
     assert done.stdout.split() == ["0RS"]
     done = tshark(path, "-Y", "xac1.alarm == 0x03", "-T", "fields", "-e", "xac1.alarm")
     assert done.stdout.split() == ["0x03"]
+
+
+def test_recorded_verdicts_show_in_the_info_column(tmp_path):
+    """The verdicts a recording carries (packet comments) show in tshark's Info column, each code once a
+    packet, as ``{recorded: alarm-ignored, ...}`` after the dissector's own checks, in a one-pass and a
+    two-pass read; a packet with no recorded verdict has none (issue 40 item 7: they were only in the
+    detail tree, so ``alarm-ignored`` or ``overlapping-command`` never showed in the packet list)."""
+    path = tmp_path / "s.pcapng"
+    write_annotated(path, session_chunks())
+    want = {}
+    for row in dissect(path):
+        codes = list(dict.fromkeys(row["xac1.violation"]))
+        want[int(row["frame.number"][0])] = codes
+    assert "alarm-ignored" in want[5] and "overlapping-command" in want[15]
+    for args in ((), ("-2",)):
+        done = tshark(path, *args)
+        assert done.returncode == 0 and not lua_errors(done), done.stderr
+        got = {}
+        for line in done.stdout.splitlines():
+            m = re.match(r"\s*(\d+)\s.*?(?:\{recorded: ([^}]*)\})?$", line)
+            assert m, line
+            got[int(m[1])] = m[2].split(", ") if m[2] else []
+        assert got == want
 
 
 @settings(max_examples=budget(15), deadline=None)

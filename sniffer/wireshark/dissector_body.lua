@@ -416,6 +416,7 @@ end
 function verdicts.dissector(tvb, pinfo, tree)
   local comments = { f_comment() }
   local sub = nil
+  local shown, codes = {}, {}  -- the recorded codes, each once, for the Info column
   for _, c in ipairs(comments) do
     local text = tostring(c.value)
     if text:sub(1, #COMMENT_PREFIX) == COMMENT_PREFIX then
@@ -428,6 +429,7 @@ function verdicts.dissector(tvb, pinfo, tree)
         sub:add(vf.side, tvb(0, 0), side)
         sub:add(vf.detail, tvb(0, 0), sentence)
         item:add_proto_expert_info(verdict_expert[code] or verdict_other, code .. " (" .. side .. "): " .. sentence)
+        if not shown[code] then shown[code] = true; codes[#codes + 1] = code end
       else
         local r, j, rest = text:match("^xac1 #(%d+) reply_to=#(%d+)(.*)$")
         if r then
@@ -438,6 +440,7 @@ function verdicts.dissector(tvb, pinfo, tree)
       end
     end
   end
+  if #codes > 0 then pinfo.cols.info:append(" {recorded: " .. table.concat(codes, ", ") .. "}") end
 end
 register_postdissector(verdicts)
 
