@@ -389,8 +389,8 @@ def terminal_lines(rep: Report) -> list[tuple[str, str]]:
 def _records(records: int, checks: int) -> str:
     """``19 records from 9 checks``: the count of the information lines that follow, and of the checks
     that recorded them (the count the run's first line gives)."""
-    made = f"record{'s' if records != 1 else ''}"
-    return f"{records} {made} from {checks} check{'s' if checks != 1 else ''}" if checks else f"{records} {made}"
+    made = f"{records} record{'s' if records != 1 else ''}"
+    return f"{made} from {checks} check{'s' if checks != 1 else ''}" if checks else made
 
 
 def _grouped(checks: list[tuple[str, str]]) -> str:
