@@ -117,8 +117,15 @@ chunk_st = st.builds(Chunk, st.floats(min_value=1.0e9, max_value=2.0e9, allow_na
                      st.sampled_from([None, None, None, "UART framing error", "UART parity error"]))
 
 
+def _spread(chunks: list[Chunk]) -> list[Chunk]:
+    """In time order, each at least 0.1 s after the one before: more than any frame's wire time, so no
+    device pieces are joined into one packet (that is tests/test_pcapng_pieces.py)."""
+    ordered = sorted(chunks, key=lambda c: c.t)
+    return [Chunk(c.t + 0.1 * k, c.dir, c.data, c.error) for k, c in enumerate(ordered)]
+
+
 @settings(max_examples=budget(60), deadline=None)
-@given(st.lists(chunk_st, max_size=25).map(lambda chunks: sorted(chunks, key=lambda c: c.t)))
+@given(st.lists(chunk_st, max_size=25).map(_spread))
 def test_pcapng_round_trip(tmp_path_factory, chunks):
     """Every chunk comes back from our pcap reader as written: direction (TX host, RX device), bytes,
     the UART error, the time to the microsecond (times in the order a recording has them: time running

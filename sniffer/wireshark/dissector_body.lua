@@ -42,8 +42,9 @@ local vf = {
   detail = ProtoField.string("xac1.detail", "Detail"),
   reply_to = ProtoField.uint32("xac1.reply_to", "Answers record"),
   latency_ms = ProtoField.double("xac1.latency_ms", "Latency (ms)"),
+  pieces = ProtoField.string("xac1.pieces", "Read in pieces (one frame's bytes, as they came)"),
 }
-verdicts.fields = { vf.record, vf.violation, vf.side, vf.detail, vf.reply_to, vf.latency_ms }
+verdicts.fields = { vf.record, vf.violation, vf.side, vf.detail, vf.reply_to, vf.latency_ms, vf.pieces }
 
 local function expert_name(code) return (code:gsub("%-", "_")) end
 local check_expert, verdict_expert = {}, {}
@@ -422,7 +423,9 @@ function verdicts.dissector(tvb, pinfo, tree)
     if text:sub(1, #COMMENT_PREFIX) == COMMENT_PREFIX then
       sub = sub or tree:add(verdicts, tvb(0, 0), "XA-C1 verdicts (from the recording)")
       local i, code, side, sentence = text:match("^xac1 #(%d+) ([%w%-]+) %((%a+)%): (.*)$")
-      if i then
+      if text:sub(1, #PIECES_PREFIX) == PIECES_PREFIX then
+        sub:add(vf.pieces, tvb(0, 0), text:sub(#PIECES_PREFIX + 1))
+      elseif i then
         local item = sub:add(vf.violation, tvb(0, 0), code)
         item:append_text(" (" .. side .. ", record #" .. i .. ")")
         sub:add(vf.record, tvb(0, 0), tonumber(i))
