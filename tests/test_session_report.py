@@ -296,8 +296,9 @@ def test_timeout_records_are_marked_on_the_device_side():
 
 # Marks close in time (issue 40 item 8): lower-case hex and an alarm ignored 0.2 s apart, a letter O that
 # overlaps the command before it, all before any answer said where the axis is; then two positions.
-CLOSE_MARKS = ((0.00, H, b"0rpa\r\n"), (0.01, D, b"0%%01\r\n"), (0.20, H, b"0RV\r\n"), (0.21, D, b"0%%01\r\n"),
-               (0.40, H, b"0%C\r\n"), (0.41, D, b"0%C00\r\n"), (0.60, H, b"0RV\r\n"), (0.602, H, b"ORS\r\n"),
+CLOSE_MARKS = ((0.00, H, b"0rpa\r\n"), (0.01, D, b"0%%01\r\n"), (0.20, H, b"0RV\r\n"),
+               (0.21, D, b"0%%01\r\n"), (0.40, H, b"0%C\r\n"), (0.41, D, b"0%C00\r\n"), (0.60, H, b"0RV\r\n"),
+               (0.602, H, b"ORS\r\n"),
                (0.62, D, b"0RV100\r\n"), (0.64, D, b"0RS02\r\n"), (1.00, H, b"0RC\r\n"),
                (1.01, D, b"0RC0000200123A\r\n"), (600.0, H, b"0RC\r\n"), (600.01, D, b"0RC0000200123A\r\n"))
 
