@@ -136,23 +136,59 @@ def capture_socat(out: Path, options: list[str], session=SESSION, scale: float =
             os.close(d)
 
 
+def _taken(slave: int, what: str, timeout: float = 10.0) -> bytes:
+    """Wait until a reader has taken every byte waiting on the pty ``slave`` (its input queue, FIONREAD,
+    is empty): the capture tool has read, and so timed, what was written, before anything else is."""
+    end = time.monotonic() + timeout
+    while _waiting(slave):
+        if time.monotonic() > end:
+            raise TimeoutError(f"jpnevulator did not read the {what} bytes within {timeout} s")
+        time.sleep(0.001)
+    return b""
+
+
+def _waiting(fd: int) -> int:
+    import fcntl
+    import struct
+    import termios
+
+    return int(struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0])
+
+
 def capture_jpnevulator(out: Path, options: list[str], names=("host", "device"), session=SESSION,
                         scale: float = 1.0) -> None:
     """``jpnevulator --read --timing-print --tty HOSTTTY:host --tty DEVTTY:device OPTIONS > out``:
-    two ptys, one per line direction, as a sniffer cable with two receive lines gives."""
+    two ptys, one per line direction, as a sniffer cable with two receive lines gives. Each side writes
+    only once jpnevulator has read what the other side wrote (the line's order is the capture's order
+    however the machine schedules jpnevulator), and the session starts once it has opened both ttys."""
     (hm, hs), (dm, ds) = _raw_pty(), _raw_pty()
     ttys = [f"{os.ttyname(hs)}:{names[0]}" if names[0] else os.ttyname(hs),
             f"{os.ttyname(ds)}:{names[1]}" if names[1] else os.ttyname(ds)]
     try:
-        with open(out, "wb") as log, _process(["jpnevulator", "--read", "--timing-print",
-                                               "--tty", ttys[0], "--tty", ttys[1], *options], stdout=log):
-            time.sleep(0.3)
-            play(lambda b: os.write(hm, b), lambda n: b"", lambda b: os.write(dm, b), lambda n: b"",
-                 session, scale)
-            time.sleep(0.2)
+        args = ["jpnevulator", "--read", "--timing-print", "--tty", ttys[0], "--tty", ttys[1], *options]
+        with open(out, "wb") as log, _process(args, stdout=log) as tool:
+            _opened(tool.pid, [os.ttyname(hs), os.ttyname(ds)])
+            play(lambda b: os.write(hm, b), lambda n: _taken(ds, "device"), lambda b: os.write(dm, b),
+                 lambda n: _taken(hs, "host"), session, scale)
     finally:
         for fd in (hm, hs, dm, ds):
             os.close(fd)
+
+
+def _opened(pid: int, paths: list[str], timeout: float = 10.0) -> None:
+    """Wait until process ``pid`` holds every one of ``paths`` open (Linux /proc)."""
+    end = time.monotonic() + timeout
+    while True:
+        held = set()
+        with contextlib.suppress(OSError):
+            for fd in Path(f"/proc/{pid}/fd").iterdir():
+                with contextlib.suppress(OSError):
+                    held.add(os.readlink(fd))
+        if set(paths) <= held:
+            return
+        if time.monotonic() > end:
+            raise TimeoutError(f"jpnevulator did not open {', '.join(paths)} within {timeout} s")
+        time.sleep(0.01)
 
 
 def capture_spy(out: Path, session=SESSION, scale: float = 1.0) -> None:

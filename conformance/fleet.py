@@ -62,7 +62,7 @@ _VERDICT = re.compile(r"^xac1 conformance: (.*) \(exit status (-?\d+)\)\s*$")
 _FAILED = re.compile(r"^(?:FAIL|ERROR) (\S+): (.+)$")
 _STOPPED = re.compile(r"^run stopped: (.+)$")
 _UNSAFE = re.compile(r"^safety (?:PROBLEM|NOT RESTORED)\b.*$")  # the child's word that a restore failed
-_FIRMWARE = (re.compile(r"^\s*firmware version: (\S+)"), re.compile(r"^device (\d{3}) on "))
+_FIRMWARE = (re.compile(r"^\s*firmware version: (\S+)"), re.compile(r"^(?:firmware|device) (\d{3}) on "))
 
 
 class FleetError(Exception):

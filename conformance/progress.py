@@ -41,12 +41,13 @@ class Progress:
         self.console.print(Text(text), soft_wrap=True)
 
     def begin(self, total: int, info: int = 0) -> None:
-        """``total`` checks will run, ``info`` of them information records (the verdict counts the
-        others: the checks of stated rules), said once so that the two counts never disagree."""
+        """``total`` checks will run, ``info`` of them checks that record information (the verdict counts
+        the others: the checks of stated rules), said once so that the two counts never disagree. A check
+        that records information may record several observations: the report counts those as records."""
         self.total = total
         if info:
             self.say(f"xac1 conformance: {total} checks to run: {total - info} of stated rules (the verdict "
-                     f"counts these) and {info} information records")
+                     f"counts these) and {info} that record information")
         if self.console.is_terminal:
             from rich.live import Live
 

@@ -108,7 +108,7 @@ class Report:
 
     @property
     def all_skipped(self) -> list[Result]:
-        """Skipped checks of stated rules, then skipped information records."""
+        """Skipped checks of stated rules, then skipped checks that record information."""
         return self.skipped + self.info_skipped
 
     @property
@@ -337,7 +337,7 @@ def _scratch_text(run: Any) -> str:
 def terminal_lines(rep: Report) -> list[tuple[str, str]]:
     """What the operator reads at the end of a run, as (line, style) pairs: style is '', 'good', 'bad',
     'warn' or 'bold'. Nothing is cut: long lines wrap on the terminal."""
-    out: list[tuple[str, str]] = [(f"device {rep.version} on {rep.port}  |  {rep.date}", "bold")]
+    out: list[tuple[str, str]] = [(f"firmware {rep.version} on {rep.port}  |  {rep.date}", "bold")]
     out += [(f"{k}: {v}", "") for k, v in rep.unit]
     for r in rep.failed:
         out.append(("", ""))
@@ -364,7 +364,9 @@ def terminal_lines(rep: Report) -> list[tuple[str, str]]:
         out.append((f"manual step ({r.check}): {r.message}", "warn"))
     if rep.infos:
         out.append(("", ""))
-        out.append(("information (docs/protocol.md is silent here; never a failure):", "bold"))
+        checks = sum(1 for r in rep.junit if r.info)
+        out.append((f"information: {_records(len(rep.infos), checks)} (docs/protocol.md is silent here; "
+                    f"never a failure):", "bold"))
         out += [(f"  {i.topic}: {i.observed}", "") for i in rep.infos]
     if rep.timing and rep.timing_meaningful:
         out.append(("", ""))
@@ -382,6 +384,13 @@ def terminal_lines(rep: Report) -> list[tuple[str, str]]:
         out.append((f"run stopped: {rep.abort}", "bad"))
     out.append((rep.verdict_line, "good" if rep.accepted else "bad"))
     return out
+
+
+def _records(records: int, checks: int) -> str:
+    """``19 records from 9 checks``: the count of the information lines that follow, and of the checks
+    that recorded them (the count the run's first line gives)."""
+    made = f"{records} record{'s' if records != 1 else ''}"
+    return f"{made} from {checks} check{'s' if checks != 1 else ''}" if checks else made
 
 
 def _grouped(checks: list[tuple[str, str]]) -> str:
@@ -460,7 +469,7 @@ def markdown(rep: Report) -> str:
 def _not_run_count(rep: Report) -> str:
     info = sum(name.endswith(" (information)") for name, _ in rep.not_run_checks)
     rules = f"{len(rep.not_run_checks) - info} check(s) of stated rules"
-    return rules + (f" and {info} information record(s)" if info else "")
+    return rules + (f" and {info} check(s) that record information" if info else "")
 
 
 def kind_of(path: Path) -> str | None:

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from xac1_proto.dut.settings import Settings
     from xac1_proto.replay import Answer, Script
 
+    from .io.base import Report
     from .replay_player import LineResult
 
 HELP = "play a capture's host side against a controller (or the simulator) and show where the answers differ"
@@ -114,43 +115,55 @@ def run(args: argparse.Namespace) -> int:
             check_output(args.report, "--report")
         except OutputFileError as exc:
             return _error(f"{exc}; nothing sent")
+    if args.dry_run:
+        return _dry_run(args, settings)
     try:
         captured = read_script(args.files, args.input_format, args.host_is, args.samplerate, PROGRAM,
                                args.timeout)
     except CaptureError as exc:
         return _error(f"{exc}; nothing sent")
-    for note in captured.report.notes:
-        print(f"{PROGRAM}: note: {note}", file=sys.stderr)
-    if captured.report.total_problems:
-        print(f"{PROGRAM}: {captured.format}: {captured.report.summary()}; the rest is replayed",
-              file=sys.stderr)
-    if args.dry_run:
-        return _dry_run(args, settings, captured.script)
+    _say_problems(captured.report, captured.format, "the rest is replayed")
     return _replay(args, settings, captured.script, captured.format)
+
+
+def _say_problems(report: Report, fmt: str, rest: str) -> None:
+    for note in report.notes:
+        print(f"{PROGRAM}: note: {note}", file=sys.stderr)
+    if report.total_problems:
+        print(f"{PROGRAM}: {fmt}: {report.summary()}; {rest}", file=sys.stderr)
 
 
 # ---- dry run ----
 
-def _dry_run(args: argparse.Namespace, settings: Settings, script: Script) -> int:
-    """Each line as it would go, the guard asked with what the capture itself establishes."""
+def _dry_run(args: argparse.Namespace, settings: Settings) -> int:
+    """Each line as it would go, the guard asked with what the capture itself establishes; the capture
+    is read line by line (``ScriptStream``), so a capture of any size takes flat memory. Its notes and
+    problems follow the lines (they are known once it has been read)."""
     from xac1_proto.chunk import DEVICE, HOST, Chunk
 
     from .analyzer import Analyzer
     from .replay_guard import MotionGuard
+    from .replay_script import CaptureError, ScriptStream
 
     analyzer = Analyzer()
     guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge)
     out = _Output(args, sys.stdout)
     skipped = 0
-    for line in script.lines:
-        why = guard.check(line.raw)
-        skipped += why is not None
-        out.would(line, why)
-        analyzer.feed(Chunk(line.t, HOST, line.raw))
-        for answer, _ in line.replies:  # in the order they came
-            analyzer.feed(Chunk(answer.t, DEVICE, answer.raw))
-    out.write({"type": "summary", "dry_run": True, "lines": len(script.lines),
-               "would_send": len(script.lines) - skipped, "skipped": skipped})
+    try:
+        with ScriptStream(args.files, args.input_format, args.host_is, args.samplerate, PROGRAM,
+                          args.timeout) as stream:
+            for line in stream:
+                why = guard.check(line.raw)
+                skipped += why is not None
+                out.would(line, why)
+                analyzer.feed(Chunk(line.t, HOST, line.raw))
+                for answer, _ in line.replies:  # in the order they came
+                    analyzer.feed(Chunk(answer.t, DEVICE, answer.raw))
+    except CaptureError as exc:
+        return _error(f"{exc}; nothing sent")
+    _say_problems(stream.report, stream.format, "the rest was read")
+    out.write({"type": "summary", "dry_run": True, "lines": stream.count,
+               "would_send": stream.count - skipped, "skipped": skipped})
     return EXIT_SAME
 
 

@@ -15,6 +15,7 @@ from sniffer.io import interceptty, jpnevulator, jsonl, pcap, saleae, sigrok, so
 from sniffer.io.base import FormatError, Report, Source
 from sniffer.io.registry import Capture, detect
 from xac1_proto.chunk import Chunk
+from xac1_proto.recording import DATA_PER_LINE, LONGEST_LINE, RecordingWriter
 
 
 def read(module, path: Path, **kw) -> tuple[list[Chunk], Report]:
@@ -254,6 +255,61 @@ def test_jsonl_reads_decoded_output_and_recordings(tmp_path: Path) -> None:
     chunks, report = read(jsonl, f)
     assert chunks == [Chunk(1.5, "host", b"0RV\r\n"), Chunk(2.0, "device", b"A", "UART framing error")]
     assert report.unread_lines == 1 and f"{f}:4:" in report.problems[0]
+
+
+@pytest.mark.parametrize("kind", ["recording", "decoded"])
+def test_jsonl_an_overlong_line_is_one_problem_at_its_line(tmp_path: Path, kind: str) -> None:
+    """A JSON line longer than ``LONGEST_LINE`` (here a 3 MB ``data`` string of digits) is one problem at
+    its own line number, in our words, and the lines after it are read with their own numbers (issue 40
+    item 5: it was reported as lines 3, 4, 5... with Python's "Exceeds the limit (4300 digits)" message)."""
+    f = tmp_path / "big.jsonl"
+    if kind == "recording":
+        lines = ['{"type":"recording","version":1,"started":0,"source":"t"}',
+                 '{"type":"chunk","t":1.0,"dir":"host","data":"3052560d0a"}',
+                 '{"type":"chunk","t":1.1,"dir":"host","data":"' + "31" * 1_500_000 + '"}',
+                 '{"type":"chunk","t":1.2,"dir":"device","data":"305256313030"}', "{oops"]
+    else:
+        lines = ['{"type":"frame","t":1.0,"dir":"host","raw":"3052560d0a"}',
+                 '{"type":"junk","t":1.1,"dir":"host","raw":"' + "31" * 1_500_000 + '"}',
+                 '{"type":"frame","t":1.2,"dir":"device","raw":"305256313030"}', "{oops"]
+    f.write_text("\n".join(lines) + "\n")
+    chunks, report = read(jsonl, f)
+    assert [c.data for c in chunks] == [b"0RV\r\n", b"0RV100"]
+    big = lines.index(max(lines, key=len)) + 1
+    assert report.problems == [
+        f"{f}:{big}: a line of {len(lines[big - 1]):,} characters, longer than any recording or record line "
+        f"({LONGEST_LINE:,} at most); not read",
+        f"{f}:{len(lines)}: " + ("malformed recording line (" if kind == "recording" else
+                                 "malformed decoded record (") + "Expecting property name enclosed in double "
+        "quotes: line 1 column 2 (char 1))"]
+    assert report.unread_lines == 2
+
+
+def test_jsonl_a_number_past_pythons_digit_limit_is_said_in_our_words(tmp_path: Path) -> None:
+    """A number of 5,000 digits in a line (Python's ``int`` refuses past 4,300) is a malformed line
+    named as such, never Python's advice to call ``sys.set_int_max_str_digits``."""
+    f = tmp_path / "n.jsonl"
+    f.write_text('{"type":"recording","version":1,"started":0,"source":"t"}\n'
+                 '{"type":"chunk","t":' + "1" * 5000 + ',"dir":"host","data":"3052560d0a"}\n')
+    chunks, report = read(jsonl, f)
+    assert chunks == []
+    assert report.problems == [f"{f}:2: malformed recording line (a number with more digits than any field "
+                               f"has)"]
+
+
+def test_recording_writer_splits_a_long_chunk_into_lines_a_reader_takes(tmp_path: Path) -> None:
+    """A chunk longer than ``DATA_PER_LINE`` is written as several chunk lines of the same time and
+    direction, each within ``LONGEST_LINE``; reading them back gives the same bytes."""
+    data = bytes(range(256)) * (DATA_PER_LINE // 128 + 3)
+    f = tmp_path / "r.jsonl"
+    with RecordingWriter(f) as rec:
+        rec.write(Chunk(5.0, "device", data, "UART framing error"))
+        rec.write(Chunk(6.0, "host", b""))
+    assert max(len(line) for line in f.read_text().splitlines()) <= LONGEST_LINE
+    chunks, report = read(jsonl, f)
+    assert not report.problems and len(chunks) == 4
+    assert b"".join(c.data for c in chunks[:3]) == data and chunks[3] == Chunk(6.0, "host", b"")
+    assert {(c.t, c.dir, c.error) for c in chunks[:3]} == {(5.0, "device", "UART framing error")}
 
 
 def test_auto_detection_names_what_it_considered(tmp_path: Path) -> None:

@@ -4,7 +4,7 @@ the comparison of answers by kind and by fields, and the device side's matching 
 from __future__ import annotations
 
 import pytest
-from conftest import CAPTURES
+from conftest import CAPTURES, budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -12,8 +12,9 @@ from strategies import frames
 from sniffer.analyzer import Analyzer
 from sniffer.io.registry import Capture, detect
 from sniffer.records import FrameRecord, JunkRecord
-from sniffer.replay_script import read_script, script_of
+from sniffer.replay_script import add_records, read_script, script_of
 from xac1_proto import spec
+from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.codec import diagnose
 from xac1_proto.frames import AlarmAnswer, Frame, ReadOutputsAnswer, ReadPointAnswer, ReadVersionAnswer
 from xac1_proto.replay import (
@@ -178,6 +179,47 @@ def test_unpaired_device_bytes_go_to_the_last_line_sent_before_them():
     assert [a.raw for a in script.lead] == [b"0RV100\r\n"]
     assert script.lines[0].answers == ()
     assert [a.raw for a in script.lines[1].answers] == [b"0RV100\r\n"]
+
+
+_COMMANDS = [b"0RV\r\n", b"0RS\r\n", b"0RP1\r\n", b"0RC\r\n", b"0XX\r\n", b"0R", b"\x000RV\r\n"]
+_ANSWERS = [b"0RV100\r\n", b"0RS02\r\n", b"0%%01\r\n", b"0RC0000200123A\r\n", b"zz", b"0RV1"]
+
+
+@settings(max_examples=budget(200), deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(_COMMANDS), st.lists(st.sampled_from(_ANSWERS), max_size=2),
+                          st.sampled_from([0.0, 0.004, 0.02, 0.3, 1.2]),
+                          st.sampled_from([0.0, 0.01, 0.5, 2.5]), st.booleans()),
+                max_size=14),
+       st.booleans())
+def test_a_script_handed_out_as_it_settles_equals_the_whole(exchanges, timed):
+    """``ScriptBuilder.settled()``, asked whenever the conversation is quiet (no answer awaited, every
+    device byte framed: what ``ScriptStream`` does to read a capture of any size in flat memory), hands
+    out the very lines ``build()`` makes from the whole capture, answers, replies and pacing included:
+    overlaps, late and missing answers, line noise, answers in pieces, with and without time."""
+    chunks, t = [], 1000.0
+    for command, answers, delay, gap, split in exchanges:
+        chunks.append(Chunk(t if timed else None, HOST, command))
+        at = t + delay
+        for a in answers:
+            parts = [a[:2], a[2:]] if split and len(a) > 2 else [a]
+            for part in parts:
+                chunks.append(Chunk(at if timed else None, DEVICE, part))
+                at += 0.003
+        t = at + gap
+    analyzer, streamed, whole, device_framed = Analyzer(), ScriptBuilder(), [], 0
+    lines = []
+    for chunk in chunks:
+        records = analyzer.feed(chunk)
+        whole += records
+        device_framed += add_records(streamed, records)
+        if not analyzer.waiting and device_framed == analyzer.bytes_in(DEVICE):
+            lines += streamed.settled()
+    records = analyzer.close()
+    whole += records
+    add_records(streamed, records)
+    lines += streamed.finish()
+    assert tuple(lines) == script_of(whole).lines
+    assert streamed.lead == script_of(whole).lead
 
 
 GALLERY = sorted(p.name for p in CAPTURES.iterdir() if p.suffix in (".log", ".txt", ".jsonl", ".pcap",

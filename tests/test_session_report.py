@@ -294,6 +294,59 @@ def test_timeout_records_are_marked_on_the_device_side():
     assert agg.exchange_count == 1
 
 
+# Marks close in time (issue 40 item 8): lower-case hex and an alarm ignored 0.2 s apart, a letter O that
+# overlaps the command before it, all before any answer said where the axis is; then two positions.
+CLOSE_MARKS = ((0.00, H, b"0rpa\r\n"), (0.01, D, b"0%%01\r\n"), (0.20, H, b"0RV\r\n"),
+               (0.21, D, b"0%%01\r\n"), (0.40, H, b"0%C\r\n"), (0.41, D, b"0%C00\r\n"), (0.60, H, b"0RV\r\n"),
+               (0.602, H, b"ORS\r\n"),
+               (0.62, D, b"0RV100\r\n"), (0.64, D, b"0RS02\r\n"), (1.00, H, b"0RC\r\n"),
+               (1.01, D, b"0RC0000200123A\r\n"), (600.0, H, b"0RC\r\n"), (600.01, D, b"0RC0000200123A\r\n"))
+
+
+def close_marks_aggregate() -> SessionAggregator:
+    agg = SessionAggregator()
+    for r in analyze([Chunk(1_795_000_000.0 + t, d, raw) for t, d, raw in CLOSE_MARKS]):
+        agg.add(r)
+    return agg
+
+
+def test_timeline_marks_say_their_code_on_hover_never_as_drawn_text():
+    """Violation marks carry their code and its meaning as hover text (and the legend names each code),
+    never as text drawn beside the mark, which overlapped where marks are close (issue 40 item 8); each
+    code has its own colour and shape, so close marks of notices (one colour) still tell apart."""
+    from sniffer.report import plots
+
+    marks = [t for t in plots.timeline(close_marks_aggregate()).data if t.meta == "violation"]
+    codes = [t.text[0] for t in marks]
+    assert {"lowercase-hex", "alarm-ignored", "letter-o", "overlapping-command"} <= set(codes)
+    for trace, code in zip(marks, codes, strict=True):
+        assert "text" not in trace.mode
+        assert trace.name.startswith(f"{code} (")
+        assert all(h.startswith(f"{code} (") and h.endswith(spec.VIOLATION_TABLE[code].meaning)
+                   for h in trace.hovertext)
+    assert len({(t.marker.color, t.marker.symbol) for t in marks}) == len(marks)
+
+
+def test_the_position_plot_draws_no_position_before_one_is_known():
+    """Alarm answers say no position: they are drawn in a strip of their own above the position axis,
+    never at a position (they were drawn at the highest position, before any answer had given one);
+    and a position the aggregate does not know (None, whatever gives it) is not drawn."""
+    from sniffer.report import plots
+
+    agg = close_marks_aggregate()
+    first_known = min(p[0] for p in agg.positions.items)
+    agg.positions.add((first_known + 1.0, None, "0RC", None))
+    agg.moves.add((first_known + 2.0, first_known + 2.5, first_known + 3.0, 0x123A, None, "0MV"))
+    fig = plots.position(agg)
+    alarms = [t for t in fig.data if t.meta == "alarm"]
+    assert alarms and all(t.yaxis == "y2" for t in alarms)
+    assert fig.layout.yaxis2.ticktext == ("alarms",)
+    on_axis = [(x, y) for t in fig.data if t.yaxis in (None, "y") for x, y in zip(t.x, t.y, strict=True)
+               if y is not None]
+    assert on_axis and all(x >= first_known * 1000.0 for x, _ in on_axis), on_axis
+    assert all(isinstance(y, int) for _, y in on_axis)
+
+
 @pytest.mark.slow  # starts a process
 def test_proxy_report_written_on_sigterm(tmp_path):
     """``xac1 proxy --report``: the report is written when the run ends (here on SIGTERM) and holds the

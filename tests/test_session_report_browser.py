@@ -141,6 +141,55 @@ def test_clicking_a_mark_shows_its_record(browser, tmp_path):
         page.close()
 
 
+OVERLAPS = """((id) => {
+  const boxes = Array.from(document.querySelectorAll(`#${id} .textpoint text, #${id} .scatterlayer text`))
+    .map(t => t.getBoundingClientRect()).filter(b => b.width > 0);
+  let pairs = 0;
+  for (let a = 0; a < boxes.length; a++) for (let b = a + 1; b < boxes.length; b++) {
+    const p = boxes[a], q = boxes[b];
+    if (p.left < q.right && q.left < p.right && p.top < q.bottom && q.top < p.bottom) pairs++;
+  }
+  return pairs;
+})"""
+
+
+def test_close_marks_are_readable_and_no_position_is_drawn_before_one_is_known(browser, tmp_path):
+    """A ten-minute session with marks 0.2 s apart (lower-case hex, an ignored alarm, a letter O on an
+    overlapping command): no text drawn on the timeline or the position plot overlaps another (the
+    codes' labels did, issue 40 item 8); pointing at a mark shows its code and meaning; the alarm
+    answers, which came before any position was known, are in the strip above the position axis."""
+    from test_session_report import CLOSE_MARKS
+
+    from xac1_proto.chunk import Chunk
+    from xac1_proto.recording import RecordingWriter
+
+    capture, out = tmp_path / "close.jsonl", tmp_path / "report.html"
+    with RecordingWriter(capture) as rec:
+        for t, d, raw in CLOSE_MARKS:
+            rec.write(Chunk(1_795_000_000.0 + t, d, raw))
+    lines = decode_with_report(capture, out)
+    page = browser.open(out)
+    try:
+        check_page(page, lines)
+        assert page.evaluate(f"{OVERLAPS}('timeline')") == 0
+        assert page.evaluate(f"{OVERLAPS}('position')") == 0
+        shown = page.evaluate("""(() => {
+          const gd = document.getElementById("timeline");
+          const k = gd.data.findIndex(t => t.meta === "violation" && t.text[0] === "overlapping-command");
+          Plotly.Fx.hover(gd, [{curveNumber: k, pointNumber: 0}]);
+          return gd.querySelector(".hoverlayer").textContent;
+        })()""")
+        assert "overlapping-command (host): a new command before the previous answer" in shown
+        strip = page.evaluate("""(() => {
+          const gd = document.getElementById("position");
+          return gd.data.filter(t => t.meta === "alarm").map(t => [t.yaxis, t.x.length]);
+        })()""")
+        assert strip == [["y2", 2]]
+        check_screenshot(page, tmp_path / "close.png")
+    finally:
+        page.close()
+
+
 def test_live_sniffer_session_report_in_chromium(browser, tmp_path):
     """``xac1 sniff --report`` over a real Y-cable of ptys, the simulator as the device (echoing 0WP
     wrongly) and the client as the host (a letter-O command, homing, a move): after Ctrl-C the report is

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 import struct
 import subprocess
@@ -116,8 +117,15 @@ chunk_st = st.builds(Chunk, st.floats(min_value=1.0e9, max_value=2.0e9, allow_na
                      st.sampled_from([None, None, None, "UART framing error", "UART parity error"]))
 
 
+def _spread(chunks: list[Chunk]) -> list[Chunk]:
+    """In time order, each at least 0.1 s after the one before: more than any frame's wire time, so no
+    device pieces are joined into one packet (that is tests/test_pcapng_pieces.py)."""
+    ordered = sorted(chunks, key=lambda c: c.t)
+    return [Chunk(c.t + 0.1 * k, c.dir, c.data, c.error) for k, c in enumerate(ordered)]
+
+
 @settings(max_examples=budget(60), deadline=None)
-@given(st.lists(chunk_st, max_size=25).map(lambda chunks: sorted(chunks, key=lambda c: c.t)))
+@given(st.lists(chunk_st, max_size=25).map(_spread))
 def test_pcapng_round_trip(tmp_path_factory, chunks):
     """Every chunk comes back from our pcap reader as written: direction (TX host, RX device), bytes,
     the UART error, the time to the microsecond (times in the order a recording has them: time running
@@ -217,6 +225,29 @@ def test_dissector_equals_decoder_frame_by_frame(tmp_path):
     assert done.stdout.split() == ["0RS"]
     done = tshark(path, "-Y", "xac1.alarm == 0x03", "-T", "fields", "-e", "xac1.alarm")
     assert done.stdout.split() == ["0x03"]
+
+
+def test_recorded_verdicts_show_in_the_info_column(tmp_path):
+    """The verdicts a recording carries (packet comments) show in tshark's Info column, each code once a
+    packet, as ``{recorded: alarm-ignored, ...}`` after the dissector's own checks, in a one-pass and a
+    two-pass read; a packet with no recorded verdict has none (issue 40 item 7: they were only in the
+    detail tree, so ``alarm-ignored`` or ``overlapping-command`` never showed in the packet list)."""
+    path = tmp_path / "s.pcapng"
+    write_annotated(path, session_chunks())
+    want = {}
+    for row in dissect(path):
+        codes = list(dict.fromkeys(row["xac1.violation"]))
+        want[int(row["frame.number"][0])] = codes
+    assert "alarm-ignored" in want[5] and "overlapping-command" in want[15]
+    for args in ((), ("-2",)):
+        done = tshark(path, *args)
+        assert done.returncode == 0 and not lua_errors(done), done.stderr
+        got = {}
+        for line in done.stdout.splitlines():
+            m = re.match(r"\s*(\d+)\s.*?(?:\{recorded: ([^}]*)\})?$", line)
+            assert m, line
+            got[int(m[1])] = m[2].split(", ") if m[2] else []
+        assert got == want
 
 
 @settings(max_examples=budget(15), deadline=None)

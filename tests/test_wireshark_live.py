@@ -112,19 +112,16 @@ def profile_env(tmp_path) -> dict[str, str]:
     return env
 
 
-def test_proxy_recording_of_a_sloppy_host_opens_in_wireshark(tmp_path, profile_env):
-    """Done when: ``xac1 proxy --record s.pcapng`` of a sloppy host opens in tshark after one
-    ``xac1 wireshark install``, every frame decoded as our decoder decodes it, every deviation the live
-    view reported there and filterable (``xac1.violation == "alarm-ignored"``)."""
-    rec = tmp_path / "s.pcapng"
-    with serve_pty(SimConfig(time_scale=0)) as sim:
+def proxied_session(rec: Path, config: SimConfig) -> tuple[str, list[bytes], list[dict]]:
+    """The sloppy host through ``xac1 proxy --record REC`` to a simulator on a pty, ended by SIGINT: the
+    device's path, the answers the host got, and the records the live view showed (the summary last)."""
+    with serve_pty(config) as sim:
         proxy = xac1("proxy", "--device", sim.path, "--tcp", "127.0.0.1:0", "--format", "jsonl",
                      "--record", str(rec))
         try:
             port = int(wait_line(proxy.stderr, r"tcp 127\.0\.0\.1:(\d+)", []).group(1))
             with connect(port) as sock:
                 answers = talk(sock)
-            assert answers[1] == b"0%%01\r\n" and answers[3] == b"0%C00\r\n"
             live = records_until(proxy.stdout, answers[-1], [])
             proxy.send_signal(signal.SIGINT)
             out = proxy.stdout.read()  # the rest (not communicate: it would skip the text buffer)
@@ -135,6 +132,16 @@ def test_proxy_recording_of_a_sloppy_host_opens_in_wireshark(tmp_path, profile_e
     assert proxy.returncode == 0 and "Traceback" not in err, err
     live += [json.loads(line) for line in out.splitlines()]
     assert live[-1]["type"] == "summary"
+    return sim.path, answers, live
+
+
+def test_proxy_recording_of_a_sloppy_host_opens_in_wireshark(tmp_path, profile_env):
+    """Done when: ``xac1 proxy --record s.pcapng`` of a sloppy host opens in tshark after one
+    ``xac1 wireshark install``, every frame decoded as our decoder decodes it, every deviation the live
+    view reported there and filterable (``xac1.violation == "alarm-ignored"``)."""
+    rec = tmp_path / "s.pcapng"
+    device, answers, live = proxied_session(rec, SimConfig(time_scale=0))
+    assert answers[1] == b"0%%01\r\n" and answers[3] == b"0%C00\r\n"
     rows = dissect(rec, plugin=False, decode_as=False, env=profile_env)  # the installed profile only
     assert dissected_verdicts(rows) == verdicts_of(live[:-1])
     assert {"letter-o", "alarm-ignored", "lowercase-hex"} <= {c for _, c, _ in dissected_verdicts(rows)}
@@ -143,7 +150,31 @@ def test_proxy_recording_of_a_sloppy_host_opens_in_wireshark(tmp_path, profile_e
                   "-e", "xac1.side", plugin=False, decode_as=False, env=profile_env)
     assert done.stdout.split() == ["0RS", "host"], done.stderr
     comment = subprocess.run(["capinfos", str(rec)], capture_output=True, text=True, timeout=60).stdout
-    assert f"xac1 proxy --device {sim.path} --tcp 127.0.0.1:0 (baud 9600" in comment
+    assert f"xac1 proxy --device {device} --tcp 127.0.0.1:0 (baud 9600" in comment
+
+
+def test_proxy_recording_has_one_packet_per_answer_read_in_pieces(tmp_path):
+    """A controller that sends its answers at 9600 baud (the simulator with wire timing): the proxy reads
+    each as it comes (its first byte, then the rest), and its pcapng has one packet per answer, never a
+    "(part of a frame" packet, with the pieces' times in a comment (issue 40 item 6: each answer was two
+    packets in Wireshark's list). tshark shows every answer whole; the decoder reads the recording as
+    the live view read the pieces."""
+    rec = tmp_path / "w.pcapng"
+    _, answers, live = proxied_session(rec, SimConfig(time_scale=0, wire_timing=True))
+    done = tshark(rec)  # the packet list, Info column last
+    assert done.returncode == 0, done.stderr
+    device = [line for line in done.stdout.splitlines() if "device > " in line]
+    assert len(device) == len(answers) and not [line for line in device if "part of a frame" in line], \
+        done.stdout
+    pieces = [c for row in dissect(rec) for c in row["frame.comment"] if c.startswith("xac1 arrived in ")]
+    assert len(pieces) >= len(answers) - 1, done.stdout  # (a read may take a whole answer at once)
+    decoded = subprocess.run([sys.executable, "-m", "xac1_proto", "decode", str(rec), "--format", "jsonl"],
+                             capture_output=True, text=True, timeout=60)
+    back = [json.loads(line) for line in decoded.stdout.splitlines()][:-1]
+    timeless = ("t", "latency_ms")  # the recording keeps microseconds: compared apart, to a microsecond
+    assert [{k: v for k, v in r.items() if k not in timeless} for r in back] == [
+        {k: v for k, v in r.items() if k not in timeless} for r in live[:-1]]
+    assert [r["t"] for r in back] == pytest.approx([r["t"] for r in live[:-1]], abs=2e-6)
 
 
 def test_sim_log_pcapng_carries_the_verdicts(tmp_path):

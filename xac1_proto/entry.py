@@ -1,3 +1,4 @@
+# PYTHON_ARGCOMPLETE_OK (argcomplete's global completion looks for this mark: xac1_proto/cli/__init__.py)
 """The ``xac1`` console script's entry (``[project.scripts]``, ``python -m xac1_proto``): the signal
 policy comes first, before any heavy import.
 

@@ -6,7 +6,9 @@ per chunk as it was seen: ``{"type":"chunk","t":<unix s or null>,"dir":"host"|"d
 ``{"type":"note","t":<unix s>,"text":"..."}`` (``xac1 sim --replay``: a line not in the capture); readers
 skip them. Each line is written and flushed to the OS as
 soon as the chunk is seen, so a process killed with kill -9 keeps every line written; the file is
-fsynced at least once a second (and on close) against power loss.
+fsynced at least once a second (and on close) against power loss. A chunk longer than
+``DATA_PER_LINE`` bytes is written as several chunk lines of the same time, so every line stays well
+inside ``LONGEST_LINE``, the longest line a reader takes.
 """
 
 from __future__ import annotations
@@ -16,12 +18,14 @@ import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO, Any, Protocol
+from typing import IO, Any, Final, Protocol
 
 from .chunk import Chunk
 
 VERSION = 1
 FSYNC_EVERY_S = 1.0
+LONGEST_LINE: Final = 1 << 20  # characters: a longer line is one problem, never read
+DATA_PER_LINE: Final = 1 << 18  # bytes of a chunk a line holds (as hex, half of LONGEST_LINE)
 
 
 class RecordingWriter:
@@ -44,10 +48,13 @@ class RecordingWriter:
             self._last_sync = now
 
     def write(self, chunk: Chunk) -> None:
-        obj: dict[str, Any] = {"type": "chunk", "t": chunk.t, "dir": chunk.dir, "data": chunk.data.hex()}
-        if chunk.error:
-            obj["error"] = chunk.error
-        self._write(obj)
+        data = chunk.data
+        for at in range(0, max(len(data), 1), DATA_PER_LINE):
+            obj: dict[str, Any] = {"type": "chunk", "t": chunk.t, "dir": chunk.dir,
+                                   "data": data[at:at + DATA_PER_LINE].hex()}
+            if chunk.error:
+                obj["error"] = chunk.error
+            self._write(obj)
 
     def note(self, text: str, t: float | None = None) -> None:
         """A remark in the recording at time ``t`` (default: now); readers skip it."""
@@ -75,6 +82,28 @@ def is_recording(first_line: str) -> bool:
     return isinstance(obj, dict) and obj.get("type") == "recording"
 
 
+def load_line(text: str) -> Any:
+    """One JSON line as an object; ValueError in our words where ``json`` would pass on Python's own
+    (a number of more digits than ``int`` converts: ``sys.get_int_max_str_digits``)."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        raise
+    except ValueError:
+        raise ValueError("a number with more digits than any field has") from None
+
+
+def chunk_of(text: str) -> Chunk | None:
+    """The chunk one recording line holds; None for the header line and notes. ValueError, KeyError,
+    TypeError or AttributeError when the line is malformed."""
+    obj = load_line(text)
+    if obj.get("type") in ("recording", "note"):
+        return None
+    if obj.get("type") != "chunk" or obj.get("dir") not in ("host", "device"):
+        raise ValueError("not a chunk line")
+    return Chunk(obj["t"], obj["dir"], bytes.fromhex(obj["data"]), obj.get("error"))
+
+
 def read_recording(lines: Iterator[str], name: str = "<recording>",
                    problems: list[str] | None = None) -> Iterator[Chunk]:
     """Chunks of a recording; a malformed line is noted in ``problems`` (file and line) and skipped."""
@@ -83,12 +112,9 @@ def read_recording(lines: Iterator[str], name: str = "<recording>",
         if not line:
             continue
         try:
-            obj = json.loads(line)
-            if obj.get("type") in ("recording", "note"):
-                continue
-            if obj.get("type") != "chunk" or obj.get("dir") not in ("host", "device"):
-                raise ValueError("not a chunk line")
-            yield Chunk(obj["t"], obj["dir"], bytes.fromhex(obj["data"]), obj.get("error"))
+            chunk = chunk_of(line)
+            if chunk is not None:
+                yield chunk
         except (ValueError, KeyError, TypeError, AttributeError) as exc:
             if problems is None:
                 raise ValueError(f"{name}:{number}: {exc}") from None

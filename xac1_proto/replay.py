@@ -25,7 +25,6 @@ No clock, no port: times come in as numbers.
 
 from __future__ import annotations
 
-from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final
@@ -99,61 +98,97 @@ class _Open:
     t: float | None
     t_last: float | None
     answers: list[Answer] = field(default_factory=list)
+    replies: list[Answer] = field(default_factory=list)  # device runs after it by time, before the next
 
 
 class ScriptBuilder:
-    """Collects the capture's judged events in the order seen (module docstring) and builds the script."""
+    """Collects the capture's judged events in the order seen (module docstring) and hands out the
+    script's lines: ``settled()`` as they become final (a capture of any size, line by line), ``build()``
+    or ``finish()`` for the rest at the end.
+
+    A line is final once nothing the capture holds further on can belong to it: the caller says when
+    (``settled``: the engine waits for no answer and no device bytes are still being framed), and every
+    line but the last one seen is then final: no later answer can pair with it, device bytes the engine
+    pairs with no line go to the last line, and every device run that began before the last line did
+    has been seen. Only the lines since the last such moment are held. Replies are placed by time when
+    the capture has time (every line and device run seen so far has one), else by the engine's pairing."""
 
     def __init__(self) -> None:
-        self._lines: list[_Open] = []
+        self._lines: list[_Open] = []  # lines not handed out yet, in order
         self._by_i: dict[int, _Open] = {}
         self._lead: list[Answer] = []
-        self._device: list[Answer] = []  # every device run in the order seen
+        self._timed = True  # every line and device run so far has a time
+        self._n = 0  # the place of ``_lines[0]`` among all the capture's lines
+        self._before: _Open | None = None  # the last line handed out (the pacing of the next)
 
     def host(self, i: int, raw: bytes, t: float | None = None, t_last: float | None = None) -> None:
         """A host frame or junk run, record number ``i``."""
         line = _Open(i, bytes(raw), t, t if t_last is None else t_last)
+        self._timed = self._timed and t is not None
         self._lines.append(line)
         self._by_i[i] = line
 
     def device(self, answer: Answer, reply_to: int | None = None) -> None:
         """Device bytes; ``reply_to``: the host line's record number the engine paired them with."""
-        self._device.append(answer)
+        self._timed = self._timed and answer.t is not None
+        lines = self._lines
         line = self._by_i.get(reply_to) if reply_to is not None else None
         if line is None:
-            line = self._lines[-1] if self._lines else None
+            line = lines[-1] if lines else None
         if line is None:
             self._lead.append(answer)
-        else:
-            line.answers.append(answer)
+            return
+        line.answers.append(answer)
+        at = answer.t
+        if at is not None:
+            k = len(lines) - 1  # the last line that began at or before the answer (they come in time order)
+            while k >= 0 and not _began_by(lines[k], at):
+                k -= 1
+            if k >= 0 or self._before is not None:  # before every line held: the first held one
+                lines[max(k, 0)].replies.append(answer)
+
+    @property
+    def lead(self) -> tuple[Answer, ...]:
+        """Device bytes before any line."""
+        return tuple(self._lead)
+
+    def settled(self) -> list[CapturedLine]:
+        """The lines final now (see the class docstring): every line but the last one seen, in order;
+        each is handed out once."""
+        return self._hand_out(len(self._lines) - 1)
+
+    def finish(self) -> list[CapturedLine]:
+        """The end of the capture: every line not handed out yet."""
+        return self._hand_out(len(self._lines))
 
     def build(self) -> Script:
-        replies = self._replies()
+        """The whole script (the lines not handed out by ``settled``: all of them when it was not used)."""
+        return Script(tuple(self.finish()), self.lead)
+
+    def _hand_out(self, count: int) -> list[CapturedLine]:
         out: list[CapturedLine] = []
-        for n, line in enumerate(self._lines):
-            after, gap = _pace(self._lines[n - 1] if n else None, replies[n - 1] if n else [], line)
-            timed = tuple((a, _delay(line, a)) for a in replies[n])
-            out.append(CapturedLine(n, line.i, line.raw, line.t, line.t_last, tuple(line.answers), timed,
-                                    after, gap))
-        return Script(tuple(out), tuple(self._lead))
-
-    def _paired(self) -> list[list[Answer]]:
-        return [line.answers for line in self._lines]
-
-    def _replies(self) -> list[list[Answer]]:
-        """The device runs after each line and before the next, by time; by the engine's pairing when
-        the capture has no time."""
         lines = self._lines
-        if any(line.t is None for line in lines) or any(a.t is None for a in self._device):
-            return self._paired()
-        starts = [line.t for line in lines if line.t is not None]
-        out: list[list[Answer]] = [[] for _ in lines]
-        for answer in self._device:
-            assert answer.t is not None
-            k = bisect_right(starts, answer.t) - 1
-            if k >= 0:
-                out[k].append(answer)
+        for line in lines[:max(count, 0)]:
+            previous = self._before
+            heard = self._replies(previous) if previous is not None else []
+            after, gap = _pace(previous, heard, line)
+            timed = tuple((a, _delay(line, a)) for a in self._replies(line))
+            out.append(CapturedLine(self._n, line.i, line.raw, line.t, line.t_last, tuple(line.answers),
+                                    timed, after, gap))
+            self._n += 1
+            self._before = line
+            del self._by_i[line.i]
+        del lines[:len(out)]
         return out
+
+    def _replies(self, line: _Open) -> list[Answer]:
+        """The device runs after ``line`` and before the next, by time; by the engine's pairing when the
+        capture has no time."""
+        return line.replies if self._timed else line.answers
+
+
+def _began_by(line: _Open, t: float) -> bool:
+    return line.t is not None and line.t <= t
 
 
 def _delay(line: _Open, answer: Answer) -> float | None:

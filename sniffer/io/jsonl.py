@@ -1,11 +1,12 @@
 """Readers for our own JSON lines: raw recordings (``sniffer.io.recording``) and decoded output.
 
 How this works: a recording's first line is ``{"type":"recording",...}`` and each chunk line is read by
-``recording.read_recording``. Decoded output (``xac1 sniff/decode --format jsonl``) has one record a
-line: ``frame`` and ``junk`` records carry the bytes of their line (``raw``, hex) with the time of the
-first byte, so the chunks are those records in order; ``timeout`` and ``summary`` lines are skipped
-(decoding again recomputes them). Directions are stored as ``host``/``device``, so there is no side to
-choose: ``--host-is`` is not used.
+``recording.chunk_of``. A line comes whole (the source hands a long one over in pieces of the same
+number); one longer than ``recording.LONGEST_LINE`` is one problem at its line and is not read.
+Decoded output (``xac1 sniff/decode --format jsonl``) has one record a line: ``frame`` and ``junk``
+records carry the bytes of their line (``raw``, hex) with the time of the first byte, so the chunks are
+those records in order; ``timeout`` and ``summary`` lines are skipped (decoding again recomputes them).
+Directions are stored as ``host``/``device``, so there is no side to choose: ``--host-is`` is not used.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from collections.abc import Iterator
 from typing import Final
 
 from xac1_proto.chunk import Chunk
-from xac1_proto.recording import is_recording, read_recording
+from xac1_proto.recording import LONGEST_LINE, chunk_of, is_recording, load_line
 
 from .base import Clock, Source, shown
 
@@ -40,7 +41,7 @@ def sniff(head: list[str]) -> int:
 
 
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    lines = src.lines()
+    lines = _whole_lines(src)
     first = next(lines, None)
     if first is None:
         src.report.problem(src.name, "empty file")
@@ -51,11 +52,41 @@ def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
         yield from _decoded(src, _chain([first], lines))
 
 
+def _whole_lines(src: Source) -> Iterator[tuple[int, str]]:
+    """(number, text) of each line, its pieces joined; a line longer than ``LONGEST_LINE`` is reported
+    once, at its number, and skipped (its pieces are not kept)."""
+    number, size = 0, 0
+    pieces: list[str] = []
+    for n, piece in src.lines():
+        if n != number:
+            yield from _line(src, number, pieces, size)
+            number, pieces, size = n, [], 0
+        size += len(piece)
+        if size <= LONGEST_LINE:
+            pieces.append(piece)
+    yield from _line(src, number, pieces, size)
+
+
+def _line(src: Source, number: int, pieces: list[str], size: int) -> Iterator[tuple[int, str]]:
+    if size > LONGEST_LINE:
+        src.report.problem(src.where(number), f"a line of {size:,} characters, longer than any recording or "
+                                              f"record line ({LONGEST_LINE:,} at most); not read", nlines=1)
+    elif pieces:
+        yield number, "".join(pieces)
+
+
 def _recording(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
-    problems: list[str] = []
     clock = Clock(src.report)
-    for chunk in read_recording((text for _n, text in lines), src.name, problems):
-        _move(src, problems)
+    for number, text in lines:
+        if not text.strip():
+            continue
+        try:
+            chunk = chunk_of(text)
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
+            src.report.problem(src.where(number), f"malformed recording line ({exc})", nlines=1)
+            continue
+        if chunk is None:
+            continue
         t, error = chunk.t, chunk.error
         if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))):
             src.report.problem(src.name, f"chunk time {shown(str(t), 20)} is not a number; the bytes are "
@@ -66,15 +97,6 @@ def _recording(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]
         if error is not None and not isinstance(error, str):
             error = shown(str(error), 40)
         yield Chunk(t, chunk.dir, chunk.data, error)
-    _move(src, problems)
-
-
-def _move(src: Source, problems: list[str]) -> None:
-    """Hand ``read_recording``'s messages (``name:line: text``) to the report."""
-    for message in problems:
-        where, _, text = message.rpartition(": malformed")
-        src.report.problem(where or src.name, "malformed" + text if where else message, nlines=1)
-    problems.clear()
 
 
 def _decoded(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
@@ -84,7 +106,7 @@ def _decoded(src: Source, lines: Iterator[tuple[int, str]]) -> Iterator[Chunk]:
         if not text.strip():
             continue
         try:
-            obj = json.loads(text)
+            obj = load_line(text)
             kind = obj.get("type")
             if kind in ("timeout", "summary"):
                 continue

@@ -1,4 +1,5 @@
-"""pcapng recordings that Wireshark opens: one packet per chunk, our verdicts as packet comments.
+"""pcapng recordings that Wireshark opens: one packet per chunk (a device frame's pieces as one), our
+verdicts as packet comments.
 
 How this works. The file is a pcapng section (SHB, then one IDB with LINKTYPE_RTAC_SERIAL, 250) and
 one Enhanced Packet Block per chunk, as it was read. Each packet's data is Wireshark's 12-byte RTAC
@@ -21,8 +22,18 @@ with the chunk that revealed it, or on an empty ``STATUS_CHANGE`` (0x00) packet 
 (``sniffer/wireshark``) turns the comments into ``xac1.violation``, ``xac1.reply_to``,
 ``xac1.latency_ms`` and expert info.
 
+A device frame that arrived in pieces within its own wire time (the port was read while its bytes were
+still coming: the first byte, then the rest) is one packet, as the decoder reads it: device bytes that
+end no line are held, and the next device piece joins them when it comes within the wire time of all
+the bytes held (``BYTE_TIME_S`` a byte, plus ``PIECE_SLACK_S`` for the reads' own delay). The packet has
+the first piece's time and a comment with every piece's size and time (``xac1 arrived in 2 pieces: 1
+byte at +0.000 ms, 7 bytes at +1.042 ms``). Anything else (host bytes, a piece after a longer pause, an
+error, a verdict packet, the wire time running out at a ``verdicts`` call) writes the held bytes first.
+Host pieces are kept as they came: how the host software wrote a command is its own behaviour.
+
 Every block is written whole and flushed to the OS at once (fsynced at least once a second and on close),
-so a recorder killed with ``kill -9`` leaves a file Wireshark opens up to its last packet.
+so a recorder killed with ``kill -9`` leaves a file Wireshark opens up to its last packet (device bytes
+held for the rest of their frame apart: at most one frame's wire time).
 
 Why by hand: three fixed block layouts (SHB, IDB, EPB with options) are a few ``struct`` calls.
 python-pcapng (``FileWriter``) and dpkt (``pcapng.Writer``) write the same blocks, but each would be a
@@ -42,7 +53,8 @@ from pathlib import Path
 from typing import IO, Final, Protocol
 
 from xac1_proto import __version__, spec
-from xac1_proto.chunk import HOST, Chunk
+from xac1_proto.chunk import DEVICE, HOST, Chunk
+from xac1_proto.framer import MAX_FRAME
 from xac1_proto.recording import RecordingWriter
 
 from ..records import FrameRecord, Record, TimeoutRecord
@@ -57,6 +69,8 @@ EVENT_PARITY_ERROR: Final = 0x08
 TSRESOL_US: Final = 6  # if_tsresol: 10^-6 s
 FSYNC_EVERY_S: Final = 1.0
 COMMENT_PREFIX: Final = "xac1 "
+PIECES_PREFIX: Final = COMMENT_PREFIX + "arrived in "  # the comment of a frame written from its pieces
+PIECE_SLACK_S: Final = 0.005  # beyond the wire time: how late a read may see the bytes that came
 
 _SHB, _IDB, _EPB = 0x0A0D0D0A, 1, 6
 _OPT_END, _OPT_COMMENT = 0, 1
@@ -99,6 +113,43 @@ def comments(record: Record) -> list[str]:
     return out
 
 
+class _Held:
+    """Device bytes that end no line, waiting for the rest of their frame: the pieces, their times and
+    the comments of the records they completed."""
+
+    def __init__(self, chunk: Chunk, notes: list[str]) -> None:
+        self.t = chunk.t
+        self.pieces = [(chunk.t, chunk.data)]
+        self.notes = notes
+
+    def takes(self, chunk: Chunk) -> bool:
+        """Is ``chunk`` the rest of the held bytes' frame: device bytes, unflagged, within the wire time
+        of every byte held and its own?"""
+        if chunk.dir == HOST or chunk.error or chunk.t is None or self.t is None:
+            return False
+        size = sum(len(data) for _, data in self.pieces) + len(chunk.data)
+        return 0 <= chunk.t - self.t <= size * spec.BYTE_TIME_S + PIECE_SLACK_S
+
+    def add(self, chunk: Chunk, notes: list[str]) -> None:
+        self.pieces.append((chunk.t, chunk.data))
+        self.notes += notes
+
+    def expired(self, now: float | None) -> bool:
+        """Has the wire time of a whole frame passed since the first piece (nothing more can join)?"""
+        return now is None or self.t is None or now - self.t > MAX_FRAME * spec.BYTE_TIME_S + PIECE_SLACK_S
+
+    @property
+    def data(self) -> bytes:
+        return b"".join(data for _, data in self.pieces)
+
+    def comment(self) -> str:
+        """Every piece's size and time after the first (``PIECES_PREFIX``)."""
+        t0 = self.t or 0.0
+        parts = [f"{len(data)} byte{'s' if len(data) != 1 else ''} at +{((t or t0) - t0) * 1e3:.3f} ms"
+                 for t, data in self.pieces]
+        return f"{PIECES_PREFIX}{len(self.pieces)} pieces: {', '.join(parts)}"
+
+
 class PcapngRecorder:
     """Write chunks (and the verdicts they complete) as a pcapng file; see the module docstring.
 
@@ -111,6 +162,7 @@ class PcapngRecorder:
         self._last_sync = time.monotonic()
         self._last_t = time.time() if started is None else started
         self._last_dir: str | None = None
+        self._held: _Held | None = None  # device bytes waiting for the rest of their frame
         self.packets = 0
         section = [(_SHB_USERAPPL, f"xac1 {__version__}".encode()),
                    (_SHB_OS, os.uname().sysname.encode())]
@@ -149,8 +201,21 @@ class PcapngRecorder:
         self.packets += 1
 
     def write(self, chunk: Chunk, records: Sequence[Record] = ()) -> None:
-        """One chunk as one packet, carrying the comments of the records it completed."""
+        """One chunk as one packet, carrying the comments of the records it completed; device pieces of
+        one frame within its wire time as one packet (module docstring)."""
         notes = [c for r in records for c in comments(r)]
+        held = self._held
+        if held is not None:
+            if held.takes(chunk):
+                held.add(chunk, notes)
+                if chunk.data.endswith(spec.FRAME_END):
+                    self._write_held()
+                return
+            self._write_held()
+        if chunk.dir != HOST and not chunk.error and chunk.data and chunk.t is not None and \
+                not chunk.data.endswith(spec.FRAME_END):
+            self._held = _Held(chunk, notes)
+            return
         data_event = EVENT_TX if chunk.dir == HOST else EVENT_RX
         if chunk.error:
             if self._last_dir != chunk.dir:
@@ -162,9 +227,21 @@ class PcapngRecorder:
         self._packet(chunk.t, event, chunk.data, notes)
         self._flush()
 
+    def _write_held(self) -> None:
+        held, self._held = self._held, None
+        if held is None:
+            return
+        notes = held.notes if len(held.pieces) == 1 else [*held.notes, held.comment()]
+        self._last_dir = DEVICE
+        self._packet(held.t, EVENT_RX, held.data, notes)
+        self._flush()
+
     def verdicts(self, records: Sequence[Record], t: float | None = None) -> None:
-        """Verdicts found with no new bytes (time passed, or the end): an empty packet of their own."""
+        """Verdicts found with no new bytes (time passed, or the end): an empty packet of their own. Also
+        the moment held device bytes are written once their frame's wire time has passed (``t``)."""
         notes = [c for r in records for c in comments(r)]
+        if self._held is not None and (notes or self._held.expired(t)):
+            self._write_held()
         if notes:
             when = t if t is not None else next((r.t for r in records if r.t is not None), None)
             self._packet(when, EVENT_STATUS, b"", notes)
@@ -173,12 +250,14 @@ class PcapngRecorder:
     def note(self, text: str, t: float | None = None) -> None:
         """A note of the shell's (``xac1 sim --replay``: a line not in the capture): an empty packet with
         the text as its comment, as verdicts found with no new bytes are written."""
+        self._write_held()
         self._packet(t, EVENT_STATUS, b"", [text])
         self._flush()
 
     def close(self) -> None:
         if not self._f.closed:
             try:
+                self._write_held()
                 self._f.flush()
                 if self._syncable:
                     os.fsync(self._f.fileno())

@@ -30,7 +30,16 @@ _PALETTE = ("#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#
             "#8b008b", "#556b2f", "#c71585", "#1e90ff", "#a0522d", "#708090")
 CODE_COLOUR: dict[str, str] = {code: _PALETTE[i % len(_PALETTE)]
                                for i, code in enumerate(spec.VIOLATION_TABLE)}
+# and one marker shape per code, counted apart among notices (all of one colour) and errors, so that
+# close marks of like colours still tell apart
+_SYMBOLS = ("diamond", "square", "triangle-up", "star", "hexagon", "triangle-down", "pentagon", "cross",
+            "star-diamond", "hourglass", "bowtie")
+_NOTICES = [code for code, v in spec.VIOLATION_TABLE.items() if v.severity == spec.NOTICE]
+_ERRORS = [code for code in spec.VIOLATION_TABLE if code not in _NOTICES]
+CODE_SYMBOL: dict[str, str] = {code: _SYMBOLS[i % len(_SYMBOLS)]
+                               for codes in (_NOTICES, _ERRORS) for i, code in enumerate(codes)}
 NOTICE_COLOUR = "#d4a017"
+ALARM_STRIP_Y = 0.5  # alarm answers: the middle of the strip above the position plot (its own axis)
 CONFIG: dict[str, Any] = {"responsive": True, "scrollZoom": True, "displaylogo": False}
 
 
@@ -110,18 +119,23 @@ def timeline(agg: SessionAggregator) -> go.Figure:
             stacked[mark["record"]] = k + 1
             away = (k + 1) * MARK_STEP
             ys.append(LANE[mark["side"]] + (away if mark["side"] == "host" else -away))
-        traces.append(go.Scatter(
-            x=_xs(agg, [m["x"] for m in marks]), y=ys, mode="markers+text", name=f"{code} ({len(marks)})",
-            text=[code] * len(marks), textposition="middle right",
-            textfont={"size": 10, "color": code_colour(code)},
-            customdata=[m["record"] for m in marks], hovertext=[f"{code} ({m['side']})" for m in marks],
-            hoverinfo="text+x", marker={"symbol": "diamond", "size": 11, "color": code_colour(code)},
+        meaning = _meaning(code)
+        traces.append(go.Scatter(  # the code is the legend's and the hover's: drawn text overlaps
+            x=_xs(agg, [m["x"] for m in marks]), y=ys, mode="markers", name=f"{code} ({len(marks)})",
+            text=[code] * len(marks), customdata=[m["record"] for m in marks],
+            hovertext=[f"{code} ({m['side']}){meaning}" for m in marks], hoverinfo="text+x",
+            marker={"symbol": CODE_SYMBOL.get(code, "diamond"), "size": 11, "color": code_colour(code)},
             meta="violation"))
-    layout = _layout(agg, "Timeline: host and device lanes (drag to zoom, double-click to reset; click a "
-                          "mark for its bytes)", 460,
+    layout = _layout(agg, "Timeline: host and device lanes (point at a mark for its code, click it for its "
+                          "bytes)", 460,
                      yaxis={"tickvals": [0, 1], "ticktext": ["device", "host"], "range": [-1.2, 2.2],
                             "fixedrange": True, "zeroline": False})
     return go.Figure(data=traces, layout=layout)
+
+
+def _meaning(code: str) -> str:
+    vspec = spec.VIOLATION_TABLE.get(code)  # type: ignore[call-overload]
+    return f": {vspec.meaning}" if vspec is not None else ""
 
 
 def activity(agg: SessionAggregator) -> go.Figure:
@@ -200,9 +214,11 @@ def _with_deadline(agg: SessionAggregator, fig: go.Figure, vertical: bool) -> go
 
 
 def position(agg: SessionAggregator) -> go.Figure:
-    """Axis position from the answers, moves with their estimated duration, homing and alarms."""
+    """Axis position from the answers, moves with their estimated duration, homing; alarm answers in a
+    strip above (an alarm says no position). Only positions an answer gave are drawn: none where it is
+    unknown (``None``), whatever the aggregate's source."""
     traces: list[go.Scatter] = []
-    pts = agg.positions.items
+    pts = [p for p in agg.positions.items if p[1] is not None]
     traces.append(go.Scatter(x=_xs(agg, [p[0] for p in pts]), y=[p[1] for p in pts], mode="markers",
                              name="position answered (0RC/0MP/0MV)", customdata=[p[3] for p in pts],
                              hovertext=[f"{p[2]} Pos {p[1]:#08x} ({p[1]})" for p in pts], hoverinfo="text+x",
@@ -210,27 +226,30 @@ def position(agg: SessionAggregator) -> go.Figure:
     mx: list[float | None] = []
     my: list[float | None] = []
     for x_cmd, x_est, x_ans, start, end, _header in agg.moves.items:
-        if start is None:
+        if start is None or end is None:
             continue
         mx += [x_cmd, x_est, x_ans, None]
         my += [start, end, end, None]
     traces.append(go.Scatter(x=[None if v is None else v * (1000.0 if agg.timed else 1.0) for v in mx], y=my,
                              mode="lines", name="move (estimated duration)", hoverinfo="skip",
                              line={"color": "#1f77b4", "dash": "dot"}))
-    top = max([p[1] for p in pts], default=0)
     homing = agg.homings.items
     traces.append(go.Scatter(x=_xs(agg, homing), y=[0] * len(homing), mode="markers", name="homing",
                              marker={"symbol": "triangle-up", "size": 12, "color": "#2ca02c"}))
-    alarms = agg.alarm_marks.items
-    labelled = len(alarms) <= 50  # codes as text only while they stay readable (hover shows them)
-    traces.append(go.Scatter(x=_xs(agg, [a[0] for a in alarms]), y=[top] * len(alarms),
-                             mode="markers+text" if labelled else "markers",
-                             hovertext=[f"alarm {a[1]:02X}" for a in alarms],
-                             name="alarm answer", text=[f"{a[1]:02X}" for a in alarms],
-                             textposition="top center", customdata=[a[2] for a in alarms],
-                             marker={"symbol": "x", "size": 11, "color": "#d62728"}))
-    layout = _layout(agg, "Axis position as the answers tell it", 380,
-                     yaxis={"title": {"text": "Pos (pulses)"}, "rangemode": "tozero"})
+    by_code: dict[int, list[tuple[float, int, int | None]]] = {}
+    for alarm in agg.alarm_marks.items:
+        by_code.setdefault(alarm[1], []).append(alarm)
+    for code in sorted(by_code):
+        alarms = by_code[code]
+        traces.append(go.Scatter(x=_xs(agg, [a[0] for a in alarms]), y=[ALARM_STRIP_Y] * len(alarms),
+                                 yaxis="y2", mode="markers", name=f"alarm {code:02X} ({len(alarms)})",
+                                 hovertext=[f"alarm {code:02X}: {spec.alarm_meaning(code)}"] * len(alarms),
+                                 hoverinfo="text+x", customdata=[a[2] for a in alarms], meta="alarm",
+                                 marker={"symbol": "x", "size": 11, "color": "#d62728"}))
+    layout = _layout(agg, "Axis position as the answers tell it (alarm answers in the strip above)", 380,
+                     yaxis={"title": {"text": "Pos (pulses)"}, "rangemode": "tozero", "domain": [0, 0.86]},
+                     yaxis2={"domain": [0.9, 1], "range": [0, 1], "fixedrange": True, "showgrid": False,
+                             "zeroline": False, "tickvals": [ALARM_STRIP_Y], "ticktext": ["alarms"]})
     return go.Figure(data=traces, layout=layout)
 
 

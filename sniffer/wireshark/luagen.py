@@ -24,7 +24,7 @@ from typing import Final
 from xac1_proto import __version__, framer, spec
 
 from ..analyzer import DEVICE_IDLE_FLUSH_S
-from ..io.pcapng_writer import COMMENT_PREFIX
+from ..io.pcapng_writer import COMMENT_PREFIX, PIECES_PREFIX
 
 PLUGIN_NAME: Final = "xac1.lua"
 BODY: Final = "dissector_body.lua"
@@ -57,6 +57,7 @@ def _tables() -> str:
              f"local MAX_FRAME = {framer.MAX_FRAME}",
              f"local ALARM_HEADER = {lua_str(spec.ALARM_HEADER)}",
              f"local COMMENT_PREFIX = {lua_str(COMMENT_PREFIX)}",
+             f"local PIECES_PREFIX = {lua_str(PIECES_PREFIX)}",
              f"local DEVICE_IDLE_FLUSH_S = {DEVICE_IDLE_FLUSH_S!r}",
              "",
              "local FIELDS = {"]

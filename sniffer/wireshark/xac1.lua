@@ -8,6 +8,7 @@ local TERMINATOR = "\r\n"
 local MAX_FRAME = 64
 local ALARM_HEADER = "0%%"
 local COMMENT_PREFIX = "xac1 "
+local PIECES_PREFIX = "xac1 arrived in "
 local DEVICE_IDLE_FLUSH_S = 1.0
 
 local FIELDS = {
@@ -185,8 +186,9 @@ local vf = {
   detail = ProtoField.string("xac1.detail", "Detail"),
   reply_to = ProtoField.uint32("xac1.reply_to", "Answers record"),
   latency_ms = ProtoField.double("xac1.latency_ms", "Latency (ms)"),
+  pieces = ProtoField.string("xac1.pieces", "Read in pieces (one frame's bytes, as they came)"),
 }
-verdicts.fields = { vf.record, vf.violation, vf.side, vf.detail, vf.reply_to, vf.latency_ms }
+verdicts.fields = { vf.record, vf.violation, vf.side, vf.detail, vf.reply_to, vf.latency_ms, vf.pieces }
 
 local function expert_name(code) return (code:gsub("%-", "_")) end
 local check_expert, verdict_expert = {}, {}
@@ -559,18 +561,22 @@ end
 function verdicts.dissector(tvb, pinfo, tree)
   local comments = { f_comment() }
   local sub = nil
+  local shown, codes = {}, {}  -- the recorded codes, each once, for the Info column
   for _, c in ipairs(comments) do
     local text = tostring(c.value)
     if text:sub(1, #COMMENT_PREFIX) == COMMENT_PREFIX then
       sub = sub or tree:add(verdicts, tvb(0, 0), "XA-C1 verdicts (from the recording)")
       local i, code, side, sentence = text:match("^xac1 #(%d+) ([%w%-]+) %((%a+)%): (.*)$")
-      if i then
+      if text:sub(1, #PIECES_PREFIX) == PIECES_PREFIX then
+        sub:add(vf.pieces, tvb(0, 0), text:sub(#PIECES_PREFIX + 1))
+      elseif i then
         local item = sub:add(vf.violation, tvb(0, 0), code)
         item:append_text(" (" .. side .. ", record #" .. i .. ")")
         sub:add(vf.record, tvb(0, 0), tonumber(i))
         sub:add(vf.side, tvb(0, 0), side)
         sub:add(vf.detail, tvb(0, 0), sentence)
         item:add_proto_expert_info(verdict_expert[code] or verdict_other, code .. " (" .. side .. "): " .. sentence)
+        if not shown[code] then shown[code] = true; codes[#codes + 1] = code end
       else
         local r, j, rest = text:match("^xac1 #(%d+) reply_to=#(%d+)(.*)$")
         if r then
@@ -581,6 +587,7 @@ function verdicts.dissector(tvb, pinfo, tree)
       end
     end
   end
+  if #codes > 0 then pinfo.cols.info:append(" {recorded: " .. table.concat(codes, ", ") .. "}") end
 end
 register_postdissector(verdicts)
 

@@ -2,12 +2,18 @@
 
 Each subcommand module has ``HELP`` (one line; ``COMMANDS`` repeats it so that ``xac1 --help`` imports
 nothing, and a test checks the two agree), ``add_arguments(parser)`` and ``run(args) -> int``.
+
+Shell completion is argcomplete's: the shell's hook (``register-python-argcomplete xac1``) runs ``xac1``
+with ``_ARGCOMPLETE`` and ``COMP_LINE`` set; only then is argcomplete imported, the parser built for the
+words typed so far (the subcommand's module imported only once its name is complete) and the
+completions written for the shell, and the process ends there.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from dataclasses import dataclass
 from typing import Final
@@ -83,6 +89,15 @@ def _build(argv: list[str]) -> argparse.ArgumentParser:
     return parser
 
 
+def _complete(argv: list[str]) -> None:
+    """Answer the shell's completion request (argcomplete's protocol: ``_ARGCOMPLETE`` set) and end the
+    process; the parser has only the subcommand already typed in full."""
+    import argcomplete
+
+    words = argcomplete.split_line(os.environ.get("COMP_LINE", ""), int(os.environ.get("COMP_POINT", 0)))[3]
+    argcomplete.autocomplete(_build(words[1:]))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one subcommand; ``argv`` None (the console script) means this is the process's entry: once
     the command has ended, late signals are ignored while the process exits."""
@@ -91,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     entry = argv is None
     startup()  # SIGINT, SIGTERM, SIGHUP before a command takes over: a quiet end, exit 2
     argv = sys.argv[1:] if argv is None else argv
+    if entry and "_ARGCOMPLETE" in os.environ:
+        _complete(argv)
     try:
         args = _build(argv).parse_args(argv)
         return int(args._run(args) or 0)
