@@ -135,6 +135,18 @@ def pytest_runtest_call(item: pytest.Item) -> None:
     require_tool(*_required_tools(item))
 
 
+# ---- the history store ----
+
+@pytest.fixture(autouse=True)
+def private_history(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Every test (and every process it starts) records runs under a data folder of its own, never the
+    user's: XDG_DATA_HOME points at a fresh temporary folder, XAC1_HISTORY is unset."""
+    folder = tmp_path_factory.mktemp("xdg-data")
+    monkeypatch.setenv("XDG_DATA_HOME", str(folder))
+    monkeypatch.delenv("XAC1_HISTORY", raising=False)
+    return folder
+
+
 # ---- Hypothesis ----
 
 def hypothesis_profile() -> str:
