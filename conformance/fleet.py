@@ -666,8 +666,8 @@ def run(args: argparse.Namespace) -> int:
             console.print("xac1 conformance: interrupted: every device was asked to stop and restore itself; "
                           "see each device's verdict above", markup=False)
         if not getattr(args, "no_history", True):
-            console.print(f"xac1 conformance: history: each device's run is recorded with fleet id {fleet_id} "
-                          f"(xac1 history list --fleet {fleet_id})", markup=False)
+            console.print(f"xac1 conformance: history: each device's run is recorded with fleet id "
+                          f"{fleet_id} (xac1 history list --fleet {fleet_id})", markup=False)
         console.print(f"xac1 conformance: {summary_line(devices, status)}", markup=False)
     return status
 

@@ -36,7 +36,8 @@ def checks(run: Any, rep: Any) -> tuple[CheckRecord, ...]:
             out.append(CheckRecord(name=r.check, outcome=r.verdict, rule=r.rule, topic=r.topic,
                                    codes=_codes(r), message=r.message, info=r.info))
         else:
-            out.append(CheckRecord(name=name, outcome="INTERRUPTED" if nodeid in run.interrupted else "NOT RUN",
+            cut = nodeid in run.interrupted
+            out.append(CheckRecord(name=name, outcome="INTERRUPTED" if cut else "NOT RUN",
                                    topic=Path(nodeid.split("::")[0]).stem.removeprefix("test_"), info=info))
     return tuple(out)
 

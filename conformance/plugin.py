@@ -122,7 +122,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                 help="write JUnit XML: checks of stated rules as tests, information as properties")
     g.addoption("--xac1-history", metavar="URL", default=None,
                 help="record the run in this history store: a SQLite file or sqlite:///FILE, or "
-                     "postgresql://USER@HOST/DB (default: $XAC1_HISTORY, else $XDG_DATA_HOME/xac1/history.sqlite)")
+                     "postgresql://USER@HOST/DB (default: $XAC1_HISTORY, else "
+                     "$XDG_DATA_HOME/xac1/history.sqlite)")
     g.addoption("--xac1-no-history", action="store_true", default=False,
                 help="record nothing in the history store")
     g.addoption("--xac1-history-fleet", default=None, help=argparse.SUPPRESS)  # the fleet run's id

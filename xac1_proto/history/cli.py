@@ -45,10 +45,12 @@ def _filters(p: argparse.ArgumentParser) -> None:
     p.add_argument("--station", help="only runs made at this station")
     p.add_argument("--since", type=since, metavar="WHEN",
                    help="only runs started since WHEN: 2026-11-01, 2026-11-01T08:00, or 12h, 7d, 2w ago")
-    p.add_argument("--verdict", help="only runs with this verdict (CONFORMS, 'DOES NOT CONFORM', INCOMPLETE...)")
+    p.add_argument("--verdict",
+                   help="only runs with this verdict (CONFORMS, 'DOES NOT CONFORM', INCOMPLETE...)")
     p.add_argument("--rule", help="only runs that failed this check (e.g. reset_clears_alarm) or showed this "
                                   "violation code in a failed check (e.g. latch-broken)")
-    p.add_argument("--fleet", metavar="ID", help="only the units of this fleet run (its id, as the fleet printed)")
+    p.add_argument("--fleet", metavar="ID",
+                   help="only the units of this fleet run (its id, as the fleet printed)")
     p.add_argument("--kind", choices=("conformance", "replay", "fuzz"),
                    help="only runs of this command (list: every kind; units, firmware, report: conformance)")
 

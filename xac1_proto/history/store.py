@@ -75,7 +75,8 @@ def _sqlite_engine(url: sa.URL) -> Engine:
         try:
             Path(url.database).parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise StoreUnreachable(f"cannot make the folder of {url.database}: {exc.strerror or exc}") from None
+            raise StoreUnreachable(f"cannot make the folder of {url.database}: "
+                                   f"{exc.strerror or exc}") from None
     engine = sa.create_engine(url, poolclass=NullPool, connect_args={"timeout": BUSY_TIMEOUT_S})
 
     @event.listens_for(engine, "connect")
@@ -208,7 +209,8 @@ class Store:
             "uid", "kind", "verdict", "verdict_line", "exit_status", "station", "operator", "port", "unit",
             "firmware", "interrupted", "kit_version", "fleet", "command_line", "readings")}
         row.update(started=utc(run.started), ended=utc(run.ended))
-        run_id = int(conn.execute(sa.insert(schema.runs).values(**row)).inserted_primary_key[0])
+        inserted = conn.execute(sa.insert(schema.runs).values(**row).returning(schema.runs.c.id))
+        run_id = int(inserted.scalar_one())
         if run.checks:
             conn.execute(sa.insert(schema.checks), [
                 {"run_id": run_id, "position": i, "name": c.name, "outcome": c.outcome, "rule": c.rule,

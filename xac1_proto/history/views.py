@@ -81,7 +81,8 @@ def compare_rows(a: StoredRun, b: StoredRun) -> list[Row]:
         either = y or x
         rows.append({"check": name, "rule": either.rule if either else "",
                      f"run {a.id}": x.outcome if x else "-", f"run {b.id}": y.outcome if y else "-",
-                     f"codes {a.id}": list(x.codes) if x else [], f"codes {b.id}": list(y.codes) if y else []})
+                     f"codes {a.id}": list(x.codes) if x else [],
+                     f"codes {b.id}": list(y.codes) if y else []})
     return rows
 
 

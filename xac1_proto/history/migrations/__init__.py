@@ -10,5 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-REVISIONS: tuple[str, ...] = tuple(sorted(p.name.split("_", 1)[0] for p in (HERE / "versions").glob("[0-9]*.py")))
+REVISIONS: tuple[str, ...] = tuple(sorted(p.name.split("_", 1)[0]
+                                          for p in (HERE / "versions").glob("[0-9]*.py")))
 HEAD = REVISIONS[-1]
