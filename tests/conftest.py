@@ -147,6 +147,21 @@ def private_history(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytes
     return folder
 
 
+@pytest.fixture(scope="session")
+def postgres() -> Iterator[object]:
+    """One real PostgreSQL server for the session (``tests/postgres_server.py``), started on first use;
+    skipped naming the Debian package when PostgreSQL is not installed (failed under CI)."""
+    import postgres_server
+
+    why = postgres_server.missing()
+    if why is not None:
+        if in_ci():
+            pytest.fail(f"{why}; CI is set, so this test fails instead of being skipped", pytrace=False)
+        pytest.skip(why)
+    with postgres_server.running() as server:
+        yield server
+
+
 # ---- Hypothesis ----
 
 def hypothesis_profile() -> str:

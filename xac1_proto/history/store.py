@@ -209,8 +209,9 @@ class Store:
             "uid", "kind", "verdict", "verdict_line", "exit_status", "station", "operator", "port", "unit",
             "firmware", "interrupted", "kit_version", "fleet", "command_line", "readings")}
         row.update(started=utc(run.started), ended=utc(run.ended))
-        inserted = conn.execute(sa.insert(schema.runs).values(**row).returning(schema.runs.c.id))
-        run_id = int(inserted.scalar_one())
+        key = conn.execute(sa.insert(schema.runs).values(**row)).inserted_primary_key
+        assert key is not None  # an INSERT always has one (SQLite's lastrowid, PostgreSQL's RETURNING)
+        run_id = int(key[0])
         if run.checks:
             conn.execute(sa.insert(schema.checks), [
                 {"run_id": run_id, "position": i, "name": c.name, "outcome": c.outcome, "rule": c.rule,
