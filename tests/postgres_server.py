@@ -128,7 +128,8 @@ def running(timeout: float = 60.0) -> Iterator[Postgres]:
                         "--no-sync"], check=True, capture_output=True, preexec_fn=setup, timeout=timeout,
                        cwd=folder)
         log = open(folder / "server.log", "wb")  # noqa: SIM115 - the server's, closed below
-        proc = subprocess.Popen([str(bindir / "postgres"), "-D", str(data), "-p", str(port), "-k", str(folder),
+        proc = subprocess.Popen([str(bindir / "postgres"), "-D", str(data), "-p", str(port),
+                                 "-k", str(folder),
                                  "-c", "listen_addresses=127.0.0.1", "-c", "fsync=off",
                                  "-c", "synchronous_commit=off", "-c", "full_page_writes=off"],
                                 stdout=log, stderr=subprocess.STDOUT, preexec_fn=setup, cwd=folder)
