@@ -65,7 +65,7 @@ def run_record(run: Any, rep: Any, config: Any) -> RunRecord:
 def record_run(run: Any, rep: Any, config: Any, url: str) -> None:
     """Record the run in the store at ``url`` (spooled when unreachable); never raises."""
     try:
-        from xac1_proto.history.record import record
+        from xac1_proto.history.recorder import record
 
         record(run_record(run, rep, config), url, PROGRAM)
     except Exception as exc:  # noqa: BLE001 - the verdict and exit status stand whatever recording does

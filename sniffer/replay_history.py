@@ -38,7 +38,7 @@ def record_replay(args: argparse.Namespace, started: _dt.datetime, firmware: str
     try:
         from xac1_proto import __version__
         from xac1_proto.history.model import CheckRecord, RunRecord, now
-        from xac1_proto.history.record import record
+        from xac1_proto.history.recorder import record
 
         checks = tuple(CheckRecord(name=f"line {r.line.i}", outcome="SKIPPED" if r.skipped else "DIFFERENT",
                                    rule=repr(r.line.raw.decode("latin-1")), codes=tuple(r.violations),

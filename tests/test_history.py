@@ -21,7 +21,7 @@ from xac1_proto.cli import main
 from xac1_proto.history import spool
 from xac1_proto.history.migrations import HEAD, REVISIONS
 from xac1_proto.history.model import CheckRecord, RunRecord
-from xac1_proto.history.record import record
+from xac1_proto.history.recorder import record
 from xac1_proto.history.store import NewerSchema, Store, StoreUnreachable
 from xac1_proto.history.where import store_url
 

@@ -2,7 +2,7 @@
 for a plant), read back with ``xac1 history``.
 
 How this works: a command that judges a device builds a ``RunRecord`` (``model.py``; ``kind``
-conformance, replay or fuzz) when it ends and calls ``record(run, url)`` (``record.py``), with the URL
+conformance, replay or fuzz) when it ends and calls ``record(run, url)`` (``recorder.py``), with the URL
 from ``where.target`` (``--history``, ``XAC1_HISTORY``, the XDG default; None for ``--no-history``).
 ``store.py`` opens the store through SQLAlchemy Core (``schema.py``), migrating an older one with the
 Alembic revisions shipped in ``migrations/``; a store it cannot reach, or of a newer schema, leaves the
@@ -17,11 +17,11 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .model import CheckRecord, RunRecord
-    from .record import Recorded, record
+    from .recorder import Recorded, record
 
 __all__ = ["CheckRecord", "RunRecord", "Recorded", "record"]
 
-_LAZY = {"CheckRecord": "model", "RunRecord": "model", "Recorded": "record", "record": "record"}
+_LAZY = {"CheckRecord": "model", "RunRecord": "model", "Recorded": "recorder", "record": "recorder"}
 
 
 def __getattr__(name: str) -> Any:
