@@ -22,7 +22,7 @@ from xac1_proto.history import spool
 from xac1_proto.history.migrations import HEAD, REVISIONS
 from xac1_proto.history.model import CheckRecord, RunRecord
 from xac1_proto.history.recorder import record
-from xac1_proto.history.store import NewerSchema, Store, StoreUnreachable
+from xac1_proto.history.store import SCRIPT_LOCATION, NewerSchema, Store, StoreUnreachable, migrate
 from xac1_proto.history.where import store_url
 
 T0 = dt.datetime(2026, 11, 2, 9, 30, tzinfo=dt.timezone(dt.timedelta(hours=9)))
@@ -111,7 +111,7 @@ def test_migrations_build_the_schema(tmp_path):
     from xac1_proto.history import schema
 
     config = Config()
-    config.set_main_option("script_location", "xac1_proto.history:migrations")
+    config.set_main_option("script_location", SCRIPT_LOCATION)
     script = ScriptDirectory.from_config(config)
     assert tuple(sorted(r.revision for r in script.walk_revisions())) == REVISIONS
     assert script.get_current_head() == HEAD
@@ -126,16 +126,10 @@ def test_migrations_build_the_schema(tmp_path):
 def test_migration_from_the_first_schema(tmp_path):
     """A store made by the first schema (revision 0001, a run in it) is upgraded in place when the kit
     opens it: the old run is still there (its readings setting empty), a new run records readings."""
-    from alembic import command
-    from alembic.config import Config
-
     path = tmp_path / "old.sqlite"
     engine = sa.create_engine(f"sqlite:///{path}")
     with engine.begin() as conn:
-        config = Config()
-        config.set_main_option("script_location", "xac1_proto.history:migrations")
-        config.attributes["connection"] = conn
-        command.upgrade(config, "0001")
+        migrate(conn, "0001")
         conn.execute(sa.text(
             "INSERT INTO runs (uid, kind, started, ended, station, unit, firmware, verdict, verdict_line, "
             "exit_status, kit_version, command_line) VALUES ('old1', 'conformance', '2026-01-05 08:00:00', "

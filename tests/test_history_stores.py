@@ -21,7 +21,7 @@ from conftest import ROOT, xac1
 
 from xac1_proto.history import spool
 from xac1_proto.history.migrations import HEAD
-from xac1_proto.history.store import Store, normalise
+from xac1_proto.history.store import Store, migrate, normalise
 
 GOOD = "xac1sim://?time_scale=0"
 BAD = "xac1sim://?time_scale=0&deviation=wrong-reset-answer"  # fails reset_clears_alarm
@@ -156,9 +156,7 @@ def test_two_writers_at_once(kind, request, tmp_path):
 def test_postgresql_migration_from_the_first_schema(postgres):
     """A PostgreSQL store of the first schema, with a run in it, is upgraded in place: the old run is
     kept, the store ends at the head revision and matches ``schema.py`` exactly."""
-    from alembic import command
     from alembic.autogenerate import compare_metadata
-    from alembic.config import Config
     from alembic.migration import MigrationContext
 
     from xac1_proto.history import schema
@@ -166,10 +164,7 @@ def test_postgresql_migration_from_the_first_schema(postgres):
     url = postgres.database()
     engine = sa.create_engine(normalise(url))
     with engine.begin() as conn:
-        config = Config()
-        config.set_main_option("script_location", "xac1_proto.history:migrations")
-        config.attributes["connection"] = conn
-        command.upgrade(config, "0001")
+        migrate(conn, "0001")
         conn.execute(sa.text(
             "INSERT INTO runs (uid, kind, started, ended, unit, verdict, verdict_line, exit_status, "
             "kit_version, command_line) VALUES ('old1', 'conformance', '2026-01-05 08:00:00+00', "

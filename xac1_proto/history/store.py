@@ -35,6 +35,7 @@ from .model import CheckRecord, RunRecord, utc
 
 BUSY_TIMEOUT_S = 30.0  # SQLite: how long a writer waits for another's transaction
 CONNECT_TIMEOUT_S = 5  # PostgreSQL: how long to wait for the server before spooling the run
+SCRIPT_LOCATION = "xac1_proto.history:migrations"  # Alembic's script_location, inside the package
 _LOCK_KEY = 0x78616331  # "xac1": the PostgreSQL advisory lock held while migrating
 
 
@@ -121,14 +122,15 @@ def _refuse_newer(url: str, revision: str | None) -> None:
                           f"nothing was written")
 
 
-def _migrate(conn: Connection) -> None:
+def migrate(conn: Connection, to: str = "head") -> None:
+    """Run the shipped migrations on ``conn`` (inside its transaction) up to revision ``to``."""
     from alembic import command
     from alembic.config import Config
 
     config = Config()
-    config.set_main_option("script_location", "xac1_proto.history:migrations")
+    config.set_main_option("script_location", SCRIPT_LOCATION)
     config.attributes["connection"] = conn
-    command.upgrade(config, "head")
+    command.upgrade(config, to)
 
 
 @dataclass(frozen=True)
@@ -162,7 +164,7 @@ class Store:
                     revision = _revision(conn)  # another writer may have migrated it meanwhile
                     _refuse_newer(url, revision)
                     if revision != HEAD:
-                        _migrate(conn)
+                        migrate(conn)
         except DBAPIError as exc:
             engine.dispose()
             raise StoreUnreachable(f"{shown(url)}: {_reason(exc)}") from None
