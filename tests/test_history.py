@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 import sqlalchemy as sa
-from conftest import budget
+from conftest import CAPTURES, budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -290,3 +290,22 @@ def test_store_unreachable_error_is_history_error(tmp_path):
     """A URL no installed driver serves is unreachable, naming the store (and the extra to install)."""
     with pytest.raises(StoreUnreachable, match="no driver"):
         Store.open("mysql+nosuchdriver://u@h/db")
+
+
+def test_a_replay_is_recorded(private_history, capsys):
+    """``xac1 replay`` records its run (kind replay): verdict DIFFERENT and exit 1 as printed, the unit
+    and station given, firmware from 0RV, and one entry per captured line whose answer differed, with
+    the violation codes of the new exchange; ``--no-history`` records nothing."""
+    args = ["replay", str(CAPTURES / "recording.jsonl"), "--port", "xac1sim://?time_scale=0",
+            "--pace", "fast", "-f", "jsonl", "--unit-id", "SN-5", "--station", "bench-2"]
+    assert main([*args, "--no-history"]) == 1
+    assert not (private_history / "xac1" / "history.sqlite").exists()
+    assert main(args) == 1
+    capsys.readouterr()
+    with Store.open(store_url(None)) as store:
+        (got,) = store.runs()
+    run = got.run
+    assert (run.kind, run.verdict, run.exit_status, run.unit, run.station, run.firmware) == (
+        "replay", "DIFFERENT", 1, "SN-5", "bench-2", "100")
+    assert [(c.name, c.outcome) for c in run.checks] == [(f"line {i}", "DIFFERENT") for i in (4, 8, 12, 14)]
+    assert run.checks[1].codes == ("alarm-ignored",) and "alarm-instead-of-answer" in run.checks[1].message
