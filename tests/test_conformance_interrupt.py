@@ -93,7 +93,7 @@ def test_restore_resets_an_alarm_latched_unbeknown(sim, monkeypatch, route):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("wait_for", [b"0WP", b"0MP"])
-def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for):
+def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for, private_history):
     """SIGINT once the random sequences have written a point (or moved): exit 2, the verdict says
     INCOMPLETE and interrupted, no check FAILs or ERRORs, the device's points and OUT ports are back."""
     slow = Sim(tmp_path, "seq", "--time-scale", "0.05", "--turnaround", "200")  # 10 ms an answer

@@ -147,7 +147,7 @@ def test_migration_from_the_first_schema(tmp_path):
         assert db.execute("SELECT version_num FROM alembic_version").fetchall() == [(HEAD,)]
 
 
-def test_newer_schema_is_refused_and_never_written(tmp_path, capsys):
+def test_newer_schema_is_refused_and_never_written(tmp_path, capsys, private_history):
     """A store whose schema revision this kit does not know is refused with a message naming both
     revisions; recording into it writes nothing there and spools the run (one warning line)."""
     url = sqlite_url(tmp_path)
@@ -165,7 +165,7 @@ def test_newer_schema_is_refused_and_never_written(tmp_path, capsys):
         assert db.execute("SELECT unit FROM runs").fetchall() == [("SN-0042",)]
 
 
-def test_unreachable_store_spools_and_sync_sends_later(tmp_path, capsys):
+def test_unreachable_store_spools_and_sync_sends_later(tmp_path, capsys, private_history):
     """A store that cannot be opened (its folder cannot be made) leaves the run in the spool with one
     warning line; ``xac1 history sync`` sends it to a store that can, once, and empties the spool."""
     blocker = tmp_path / "a-file"

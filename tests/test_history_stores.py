@@ -58,7 +58,7 @@ def listed(url: str, *filters: str) -> list[dict[str, object]]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["sqlite", "postgresql"])
-def test_done_when(kind, request, tmp_path):
+def test_done_when(kind, request, tmp_path, private_history):
     """Two single runs (SN-1 conforms, SN-2 does not), a fleet of two (UNIT-A, UNIT-B) and a run whose
     store is unreachable all run at once against one fresh store: every run is listed with its verdict,
     exit status and failing rules, the fleet's two with one fleet id; --rule finds the failing units;

@@ -85,7 +85,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .store import HistoryError, Store, StoreUnreachable
+    from .store import HistoryError, NewerSchema, Store, StoreUnreachable
 
     url = where.store_url(args.history)
     try:
@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_STORE
     except HistoryError as exc:
         print(f"xac1 history: {exc}", file=sys.stderr)
-        return EXIT_STORE if type(exc).__name__ == "NewerSchema" else EXIT_USAGE
+        return EXIT_STORE if isinstance(exc, NewerSchema) else EXIT_USAGE
 
 
 def _query(args: argparse.Namespace, kind: str | None = None) -> Query:
@@ -133,7 +133,7 @@ def _firmware(store: Store, args: argparse.Namespace) -> int:
 def _show(store: Store, args: argparse.Namespace) -> int:
     import json
 
-    from .views import console, emit, run_object, show_rows
+    from .views import console, emit, run_object, show_rows, when
 
     found = store.run(args.run)
     if args.format == "json":
@@ -144,8 +144,9 @@ def _show(store: Store, args: argparse.Namespace) -> int:
         r = found.run
         con = console(sys.stdout)
         for label, value in (("run", f"{found.id} ({r.kind}, {r.uid})"),
-                             ("started", r.started.isoformat(timespec="seconds")),
-                             ("ended", r.ended.isoformat(timespec="seconds")), ("station", r.station),
+                             ("started", when(r)),
+                             ("ended", r.ended.astimezone().isoformat(timespec="seconds")),
+                             ("station", r.station),
                              ("operator", r.operator), ("port", r.port), ("unit", r.unit),
                              ("firmware", r.firmware), ("verdict", r.verdict_line or r.verdict),
                              ("exit status", r.exit_status), ("interrupted", r.interrupted),

@@ -24,7 +24,8 @@ FORMATS = ("text", "json", "csv")
 
 
 def when(run: RunRecord) -> str:
-    return run.started.isoformat(timespec="seconds")
+    """When the run started, in this machine's local time, with its UTC offset."""
+    return run.started.astimezone().isoformat(timespec="seconds")
 
 
 def list_rows(runs: Sequence[StoredRun]) -> list[Row]:
