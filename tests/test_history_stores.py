@@ -176,3 +176,48 @@ def test_postgresql_migration_from_the_first_schema(postgres):
         assert conn.execute(sa.text("SELECT version_num FROM alembic_version")).scalar() == HEAD
         assert compare_metadata(MigrationContext.configure(conn), schema.metadata) == []
     engine.dispose()
+
+
+DRAWN = """(() => Object.fromEntries(["per-day", "per-firmware", "per-rule"].map(id => {
+  const gd = document.getElementById(id);
+  return [id, {laid_out: !!gd._fullLayout, bars: gd.querySelectorAll(".barlayer .point").length,
+               traces: gd.data.map(t => t.name), ys: gd.data.map(t => Array.from(t.y))}];
+})))()"""
+
+
+@pytest.mark.slow
+@pytest.mark.requires_tool("chromium")
+def test_trend_page_draws_in_chromium(tmp_path):
+    """``xac1 history report --html``'s page, opened in headless Chromium, draws its three plots (a bar
+    for each day and verdict, each firmware version, each day a rule failed) with no console error and no
+    request: plotly is inlined."""
+    import datetime as dt
+
+    from session_report_browser import Browser
+
+    from xac1_proto.history.model import CheckRecord, RunRecord
+
+    url = f"sqlite:///{tmp_path / 'h.sqlite'}"
+    t0 = dt.datetime(2026, 11, 2, 9, tzinfo=dt.timezone.utc)
+    with Store.open(url) as store:
+        for day, firmware, failed in ((0, "102", True), (0, "102", False), (1, "103", False)):
+            when = t0 + dt.timedelta(days=day)
+            store.add(RunRecord(kind="conformance", started=when, ended=when, firmware=firmware,
+                                verdict="DOES NOT CONFORM" if failed else "CONFORMS", exit_status=int(failed),
+                                checks=(CheckRecord(name=BROKEN_RULE,
+                                                    outcome="FAIL" if failed else "PASS"),)))
+    page_file = tmp_path / "trend.html"
+    r = xac1("history", "report", "--history", url, "--html", str(page_file))
+    assert r.returncode == 0, r.stderr
+    browser = Browser()
+    try:
+        page = browser.open(page_file)
+        drawn = page.evaluate(DRAWN)
+        assert page.problems() == [] and page.requests() == []
+    finally:
+        browser.close()
+    assert all(d["laid_out"] for d in drawn.values()), drawn
+    assert (drawn["per-day"]["ys"], drawn["per-day"]["bars"]) == ([[1, 1], [1, 0]], 4)  # a bar a day a trace
+    assert (drawn["per-firmware"]["ys"], drawn["per-firmware"]["bars"]) == ([[50, 100]], 2)
+    assert (drawn["per-rule"]["traces"], drawn["per-rule"]["ys"]) == ([BROKEN_RULE], [[1, 0]])
+    assert drawn["per-rule"]["bars"] == 2
