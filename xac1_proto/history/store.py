@@ -35,6 +35,7 @@ from .model import CheckRecord, RunRecord, utc
 
 BUSY_TIMEOUT_S = 30.0  # SQLite: how long a writer waits for another's transaction
 CONNECT_TIMEOUT_S = 5  # PostgreSQL: how long to wait for the server before spooling the run
+READ_ONLY = "xac1_read_only"  # the execution option of a transaction that only reads
 SCRIPT_LOCATION = "xac1_proto.history:migrations"  # Alembic's script_location, inside the package
 _LOCK_KEY = 0x78616331  # "xac1": the PostgreSQL advisory lock held while migrating
 
@@ -89,7 +90,10 @@ def _sqlite_engine(url: sa.URL) -> Engine:
 
     @event.listens_for(engine, "begin")
     def _begin(connection: Connection) -> None:
-        connection.exec_driver_sql("BEGIN IMMEDIATE")  # the write lock at once: no upgrade deadlock
+        if connection.get_execution_options().get(READ_ONLY):
+            connection.exec_driver_sql("BEGIN")  # a reader takes no write lock (a read-only file too)
+        else:
+            connection.exec_driver_sql("BEGIN IMMEDIATE")  # the write lock at once: no upgrade deadlock
 
     return engine
 
@@ -153,7 +157,7 @@ class Store:
         """Open (creating a SQLite file, migrating an older schema); ``StoreUnreachable``, ``NewerSchema``."""
         engine = make_engine(url)
         try:
-            with engine.connect() as conn:
+            with engine.connect().execution_options(**{READ_ONLY: True}) as conn:
                 revision = _revision(conn)
                 conn.rollback()
             _refuse_newer(url, revision)
@@ -180,9 +184,9 @@ class Store:
         self.close()
 
     @contextmanager
-    def _transaction(self) -> Iterator[Connection]:
+    def _transaction(self, read_only: bool = False) -> Iterator[Connection]:
         try:
-            with self.engine.begin() as conn:
+            with self.engine.connect().execution_options(**{READ_ONLY: read_only}) as conn, conn.begin():
                 yield conn
         except IntegrityError:
             raise
@@ -249,14 +253,14 @@ class Store:
                 sa.or_(c.c.name == q.rule, padded.like(f"% {q.rule} %"))))
         if q.ids is not None:
             stmt = stmt.where(r.c.id.in_(q.ids))
-        with self._transaction() as conn:
+        with self._transaction(read_only=True) as conn:
             rows = conn.execute(stmt).mappings().all()
             return self._complete(conn, rows)
 
     def run(self, ref: str) -> StoredRun:
         """The run numbered ``ref`` (or whose uid starts with it); ``HistoryError`` when there is none."""
         r = schema.runs
-        with self._transaction() as conn:
+        with self._transaction(read_only=True) as conn:
             if ref.isdigit():
                 rows = conn.execute(sa.select(r).where(r.c.id == int(ref))).mappings().all()
             else:
