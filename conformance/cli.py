@@ -46,6 +46,7 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
                         ("--xac1-station", args.station), ("--xac1-note", args.note),
                         ("--xac1-seed", args.seed), ("--xac1-examples", args.examples),
                         ("--xac1-timeout", args.timeout), ("--xac1-scratch-points", args.scratch_points),
+                        ("--xac1-history", args.history), ("--xac1-history-fleet", args.history_fleet),
                         ("-k", args.select)):
         if value is not None:
             out += [flag, str(value)]
@@ -57,6 +58,8 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
         out.append("--xac1-restore-mode0")
     if args.allow_incomplete:
         out.append("--xac1-allow-incomplete")
+    if args.no_history:
+        out.append("--xac1-no-history")
     command_line = shlex.join(["xac1", *sys.argv[1:]])
     return out + ["--xac1-cli", "--xac1-command-line", command_line]
 

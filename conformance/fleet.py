@@ -42,6 +42,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import uuid
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -54,7 +55,8 @@ CONFORMS, NOT_CONFORM, INCOMPLETE, NOT_TESTED, INTERRUPTED = (
     "CONFORMS", "DOES NOT CONFORM", "INCOMPLETE", "NOT TESTED", "INTERRUPTED")
 EXIT: Final = {CONFORMS: 0, NOT_CONFORM: 1, INCOMPLETE: 4, NOT_TESTED: 3, INTERRUPTED: 2}
 RANK: Final = (NOT_TESTED, NOT_CONFORM, INCOMPLETE, CONFORMS)
-FLEET_OWN: Final = frozenset({"port", "ports", "report_dir", "report_format", "report", "junit"})
+FLEET_OWN: Final = frozenset({"port", "ports", "report_dir", "report_format", "report", "junit",
+                               "history_fleet"})
 PROGRESS_PLUGIN: Final = "conformance.fleet_progress"
 MAX_STEM: Final = 96  # longest file stem made from a port URL (a hash of the URL ends a cut one)
 _HASH_CHARS: Final = 12
@@ -615,6 +617,7 @@ def run(args: argparse.Namespace) -> int:
         console = Console(highlight=False, width=max(console.width, 160))
     started = _dt.datetime.now().astimezone()
     common = passthrough(args)
+    fleet_id = uuid.uuid4().hex  # each child records its unit in the history with it
     with contextlib.ExitStack() as stack:
         files = out_dir or Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="xac1-fleet-")))
         try:
@@ -632,6 +635,8 @@ def run(args: argparse.Namespace) -> int:
                 argv += ["--report", str(report)]
             if t.unit and _supports(args, "--unit-id"):
                 argv += ["--unit-id", t.unit]
+            if _supports(args, "--history-fleet"):
+                argv += ["--history-fleet", fleet_id]
             devices.append(Device(t, stem, report, junit, files / f"{stem}.log" if out_dir else None, argv))
         serials = _usb_serials()
         for d in devices:
@@ -660,6 +665,9 @@ def run(args: argparse.Namespace) -> int:
         if interrupted:
             console.print("xac1 conformance: interrupted: every device was asked to stop and restore itself; "
                           "see each device's verdict above", markup=False)
+        if not getattr(args, "no_history", True):
+            console.print(f"xac1 conformance: history: each device's run is recorded with fleet id "
+                          f"{fleet_id} (xac1 history list --fleet {fleet_id})", markup=False)
         console.print(f"xac1 conformance: {summary_line(devices, status)}", markup=False)
     return status
 

@@ -37,6 +37,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", metavar="S", type=float, help="seconds to wait for an answer")
     p.add_argument("-k", metavar="EXPR", dest="select", help="run only the checks matching EXPR (pytest -k)")
     p.add_argument("-v", "--verbose", action="store_true", help="show pytest's own output and tracebacks")
+    from xac1_proto.history.where import add_arguments as history_arguments
+
+    history_arguments(p)
+    p.add_argument("--history-fleet", metavar="ID", help=argparse.SUPPRESS)  # a fleet's child: its fleet
     from .fleet import add_arguments as fleet_arguments
 
     fleet_arguments(p)

@@ -120,6 +120,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     g.addoption("--xac1-note", metavar="TEXT", default=None, help="a note for the report")
     g.addoption("--xac1-junit", metavar="FILE", default=None,
                 help="write JUnit XML: checks of stated rules as tests, information as properties")
+    g.addoption("--xac1-history", metavar="URL", default=None,
+                help="record the run in this history store: a SQLite file or sqlite:///FILE, or "
+                     "postgresql://USER@HOST/DB (default: $XAC1_HISTORY, else "
+                     "$XDG_DATA_HOME/xac1/history.sqlite)")
+    g.addoption("--xac1-no-history", action="store_true", default=False,
+                help="record nothing in the history store")
+    g.addoption("--xac1-history-fleet", default=None, help=argparse.SUPPRESS)  # the fleet run's id
     g.addoption("--xac1-cli", action="store_true", default=False, help=argparse.SUPPRESS)
     g.addoption("--xac1-command-line", default="", help=argparse.SUPPRESS)
 
@@ -142,7 +149,8 @@ CLI_OPTION: dict[str, str] = {
     "xac1_report": "--report", "xac1_scratch_points": "--scratch-points",
     "xac1_restore_mode0": "--restore-mode0", "xac1_allow_incomplete": "--allow-incomplete",
     "xac1_unit_id": "--unit-id", "xac1_operator": "--operator", "xac1_station": "--station",
-    "xac1_note": "--note", "xac1_junit": "--junit",
+    "xac1_note": "--note", "xac1_junit": "--junit", "xac1_history": "--history",
+    "xac1_no_history": "--no-history", "xac1_history_fleet": "--history-fleet",
 }
 
 
@@ -524,9 +532,31 @@ def _finish(run: Xac1Run) -> None:
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """The run's end, whatever ended it: the device restored and closed, the reports written, the
+    verdict and exit status decided and shown, the run recorded in the history store."""
     run = _run(session.config)
     if run is None or not run.active:
         return
+    _end_on_the_device(run, exitstatus)
+    from .report import build
+
+    rep = build(run)
+    c = session.config
+    problems = _write_reports(c, rep)
+    run.exit_status = session.exitstatus = _decide(run, rep, c)
+    if run.progress is not None:
+        _show_the_end(run, rep, c, problems)
+    run.write_problems = problems
+    target = _history_target(c)
+    if target is not None:
+        from .history import record_run
+
+        record_run(run, rep, c, target)
+
+
+def _end_on_the_device(run: Xac1Run, exitstatus: int) -> None:
+    """Note what interrupted the run (even a signal whose raise a check swallowed), restore the device
+    once and close whatever port is still open."""
     if run.policy is not None:
         run.policy.ending("the device is being restored; the report follows")
     stopped_by = run.policy.stopped_by if run.policy is not None else None  # even if its raise was lost
@@ -542,10 +572,12 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         run.opened = None
     if run.interrupted_by is None and run.policy is not None and run.policy.interrupted_by:
         run.interrupted_by = run.policy.interrupted_by  # a signal during the restore: ignored, but said
-    from .report import build, terminal_lines, write_file
 
-    rep = build(run)
-    c = session.config
+
+def _write_reports(c: pytest.Config, rep: Any) -> list[str]:
+    """Write the report and JUnit files asked for; what could not be written."""
+    from .report import write_file
+
     problems: list[str] = []
     for path, writer in ((c.getoption("xac1_report"), write_file), (c.getoption("xac1_junit"), _junit)):
         if path:
@@ -553,25 +585,41 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
                 writer(Path(path), rep)
             except (OSError, ValueError) as exc:  # ValueError: OutputFileError, it is no longer a file
                 problems.append(f"could not write {path}: {getattr(exc, 'strerror', None) or exc}")
+    return problems
+
+
+def _decide(run: Xac1Run, rep: Any, c: pytest.Config) -> int:
+    """The verdict line (kept on the run) and the exit status; a run that collected no check is NOT
+    TESTED, exit 2 (as for bad options: pytest's own code for it, 5, says nothing)."""
     run.verdict_line = rep.verdict_line
-    status = rep.exit_status(c.getoption("xac1_allow_incomplete"))
-    if run.total == 0:
-        select = c.getoption("keyword") or ""
-        run.verdict_line = (f"NOT TESTED: -k {select!r} matches no check (names look like "
-                            f"'framing', 'answer_length', 'read_back_after_write')" if select
-                            else "NOT TESTED: no check was collected")
-        status = 2  # as for bad options (pytest's own code for this, 5, says nothing)
-    run.exit_status = int(status)
-    session.exitstatus = status
-    if run.progress is not None:
-        lines = [] if run.total == 0 else terminal_lines(rep)[:-1]
-        lines += [(f"could not write the report: {p}", "bad") for p in problems]
-        lines.append((run.verdict_line, "good" if rep.accepted else "bad"))
-        run.progress.lines(lines)
-        for path in (c.getoption("xac1_report"), c.getoption("xac1_junit")):
-            if path and not any(path in p for p in problems):
-                run.progress.say(f"written: {path}")
-    run.write_problems = problems
+    if run.total:
+        return int(rep.exit_status(c.getoption("xac1_allow_incomplete")))
+    select = c.getoption("keyword") or ""
+    run.verdict_line = (f"NOT TESTED: -k {select!r} matches no check (names look like "
+                        f"'framing', 'answer_length', 'read_back_after_write')" if select
+                        else "NOT TESTED: no check was collected")
+    return 2
+
+
+def _show_the_end(run: Xac1Run, rep: Any, c: pytest.Config, problems: list[str]) -> None:
+    """``xac1 conformance``'s last words (no pytest terminal): the summary, the verdict, the files."""
+    from .report import terminal_lines
+
+    lines = [] if run.total == 0 else terminal_lines(rep)[:-1]
+    lines += [(f"could not write the report: {p}", "bad") for p in problems]
+    lines.append((run.verdict_line or "", "good" if rep.accepted else "bad"))
+    run.progress.lines(lines)
+    for path in (c.getoption("xac1_report"), c.getoption("xac1_junit")):
+        if path and not any(path in p for p in problems):
+            run.progress.say(f"written: {path}")
+
+
+def _history_target(c: pytest.Config) -> str | None:
+    """The history store this run goes to (``--xac1-history``, ``XAC1_HISTORY``, the default), or None
+    with ``--xac1-no-history``."""
+    from xac1_proto.history.where import target
+
+    return target(c.getoption("xac1_history"), c.getoption("xac1_no_history"))
 
 
 def _junit(path: Path, rep: Any) -> None:

@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING, Any, Final, TextIO
 from .capture_args import add_capture_arguments
 
 if TYPE_CHECKING:
+    import datetime as _dt
+
     from xac1_proto.dut.safety import RestoreReport, Snapshot
     from xac1_proto.dut.settings import Settings
     from xac1_proto.replay import Answer, Script
@@ -76,6 +78,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "--timeout (default 1; the new conversation with xac1sim://: 0.2)")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text output (default: when the output is a terminal)")
+    from .replay_history import add_arguments as history_arguments
+
+    history_arguments(p)
 
 
 def _error(message: str, status: int = EXIT_USAGE) -> int:
@@ -173,12 +178,14 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
     from xac1_proto.client import Client, open_port
     from xac1_proto.dut.device import DeviceAbort, DeviceUnderTest
     from xac1_proto.dut.safety import restore, take_snapshot
+    from xac1_proto.history.model import now
     from xac1_proto.signals import EXIT_EARLY, Interrupted, OrderlyEnd
 
     from .analyzer import Analyzer
     from .replay_guard import MotionGuard
     from .replay_player import Player, PortFailed
 
+    started = now()
     with OrderlyEnd(PROGRAM, "stopping the replay: the device is restored, then the results follow") as end:
         try:
             try:
@@ -218,7 +225,7 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
         port.close()
         outcome = Outcome(player.played, _restore_lines(restored, player.played, snap),
                           None if restored is None else restored.ok, player.stopped or port_failed, failure,
-                          end.signal_name)
+                          end.signal_name, started, dut.version)
     return _conclude(args, script, fmt, outcome, out)
 
 
@@ -234,6 +241,8 @@ class Outcome:
     stopped: bool
     failure: str | None
     signal: str | None
+    started: _dt.datetime  # for the history
+    firmware: str | None  # what 0RV answered (the history)
 
 
 def _restore_lines(restored: RestoreReport | None, results: list[LineResult], snap: Snapshot) -> list[str]:
@@ -318,6 +327,9 @@ def _conclude(args: argparse.Namespace, script: Script, fmt: str, outcome: Outco
                   file=sys.stderr)
         else:
             print(f"{PROGRAM}: report written to {written}", file=sys.stderr)
+    from .replay_history import record_replay
+
+    record_replay(args, outcome.started, outcome.firmware, results, summary, status, outcome.signal, PROGRAM)
     return status
 
 

@@ -135,6 +135,47 @@ def pytest_runtest_call(item: pytest.Item) -> None:
     require_tool(*_required_tools(item))
 
 
+# ---- the history store ----
+
+@pytest.fixture(scope="session")
+def session_data_home(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("xdg-data")
+
+
+@pytest.fixture(autouse=True)
+def data_home(session_data_home: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Every test (and every process it starts) records runs under this session's temporary data folder,
+    never the user's: XDG_DATA_HOME points there, XAC1_HISTORY is unset. One folder a session (a worker),
+    so its history store is made once; a test that reads the default store asks for ``private_history``."""
+    monkeypatch.setenv("XDG_DATA_HOME", str(session_data_home))
+    monkeypatch.delenv("XAC1_HISTORY", raising=False)
+    return session_data_home
+
+
+@pytest.fixture
+def private_history(data_home: Path, tmp_path_factory: pytest.TempPathFactory,
+                    monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A data folder of this test's own: a default history store and spool no other test writes."""
+    folder = tmp_path_factory.mktemp("xdg-data-private")
+    monkeypatch.setenv("XDG_DATA_HOME", str(folder))
+    return folder
+
+
+@pytest.fixture(scope="session")
+def postgres() -> Iterator[object]:
+    """One real PostgreSQL server for the session (``tests/postgres_server.py``), started on first use;
+    skipped naming the Debian package when PostgreSQL is not installed (failed under CI)."""
+    import postgres_server
+
+    why = postgres_server.missing()
+    if why is not None:
+        if in_ci():
+            pytest.fail(f"{why}; CI is set, so this test fails instead of being skipped", pytrace=False)
+        pytest.skip(why)
+    with postgres_server.running() as server:
+        yield server
+
+
 # ---- Hypothesis ----
 
 def hypothesis_profile() -> str:

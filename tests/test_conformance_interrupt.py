@@ -7,6 +7,7 @@ would land (after the answer came, before it is filed)."""
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -14,6 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import xac1
 from test_fleet import HELD, OUT_BEFORE, Sim
 
 from conformance import plugin
@@ -91,7 +93,7 @@ def test_restore_resets_an_alarm_latched_unbeknown(sim, monkeypatch, route):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("wait_for", [b"0WP", b"0MP"])
-def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for):
+def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for, private_history):
     """SIGINT once the random sequences have written a point (or moved): exit 2, the verdict says
     INCOMPLETE and interrupted, no check FAILs or ERRORs, the device's points and OUT ports are back."""
     slow = Sim(tmp_path, "seq", "--time-scale", "0.05", "--turnaround", "200")  # 10 ms an answer
@@ -116,5 +118,10 @@ def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for
         report = (tmp_path / "r.md").read_text()
         assert "random_sequences | interrupted" in report and "FAIL" not in report.split("## Safety")[0]
         assert slow.points() == HELD and slow.outputs() == OUT_BEFORE
+        # the history keeps the interrupted run: its verdict, exit status, signal, the check cut short
+        shown = xac1("history", "show", "1", "-f", "json")
+        run = json.loads(shown.stdout)
+        assert (run["verdict"], run["exit_status"], run["interrupted"]) == ("INCOMPLETE", 2, "SIGINT"), run
+        assert [c["outcome"] for c in run["checks"]] == ["INTERRUPTED"], run["checks"]
     finally:
         slow.close()

@@ -46,6 +46,9 @@ COMMANDS: Final[dict[str, Subcommand]] = {
     "conformance": Subcommand("conformance.cli",
                               "run the conformance suite against a controller (default: the built-in "
                               "simulator) and report"),
+    "history": Subcommand("xac1_proto.history.cli",
+                          "the acceptance history: list, show and compare recorded runs, per unit and "
+                          "firmware; sync the spool"),
     "sniff": Subcommand("sniffer.sniff_cli",
                         "watch live traffic through two receive-only taps (host TX, device TX) and "
                         "decode it"),
