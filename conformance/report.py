@@ -410,15 +410,14 @@ PICTURES_HINT = "pip install 'xac1-proto[report]'"  # the extra that draws the r
 def pictures(rep: Report) -> dict[str, Any] | None:
     """The HTML report's figures (issue 17): the rule groups as stacked bars and, when turnaround means
     something (``timing_meaningful``), its histogram per command with the answer deadline, drawn by the
-    session report's plotly helpers (``sniffer.report.plots``), with plotly.js to inline once. None when
+    reports' plotly fragments (``xac1_proto.pages.figures``), with plotly.js to inline once. None when
     plotly (the ``report`` extra) is not installed: the page is then the same without the pictures."""
     import html
-    import importlib
 
     from markupsafe import Markup
 
     try:
-        plots = importlib.import_module("sniffer.report.plots")
+        from xac1_proto.pages import figures
     except ImportError:
         return None
     # Names reach plotly's labels, which read HTML: escaped, as the page's own text is.
@@ -429,12 +428,13 @@ def pictures(rep: Report) -> dict[str, Any] | None:
     turnaround = None
     if rep.latencies and rep.timing_meaningful:
         deadline = rep.timeout * 1000.0 if rep.timeout is not None else None
-        turnaround = Markup(plots.turnaround_histogram(
+        turnaround = Markup(figures.turnaround_histogram(
             {html.escape(h): [t * 1000.0 for t in v] for h, v in rep.latencies.items()},
             title="Answer turnaround per command", deadline_ms=deadline))
-    return {"groups": Markup(plots.group_summary(groups, title="Checks per rule group")) if groups else None,
+    summary = Markup(figures.group_summary(groups, title="Checks per rule group")) if groups else None
+    return {"groups": summary,
             "turnaround": turnaround,
-            "js": Markup(plots.plotly_js().replace("</script", "<\\/script"))}
+            "js": Markup(figures.plotly_js().replace("</script", "<\\/script"))}
 
 
 def render_page(rep: Report, kind: str) -> str:
