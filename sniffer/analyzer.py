@@ -70,36 +70,21 @@ class Analyzer:
         exception, Ctrl-C included, loses none of the chunks taken); ``out`` None: no records are made,
         the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
 
-        Each chunk: time passes to its time (``_tick``), its bytes are framed by its line's framer (a
-        device line's partial frame keeps the time it began: an answer that starts in time is in time),
-        and its events are judged (``_judge``). The usual chunk, one whole frame (``Framer.take_frame``),
-        goes to the engine at once: the frame's arrival passes time to it (the engine's events tick; a
-        device frame arriving in pieces meanwhile is passed to ``_tick`` first)."""
+        Each chunk goes through ``_step``: time passes to its time, its bytes are framed by its line's
+        framer (a device line's partial frame keeps the time it began: an answer that starts in time is in
+        time), and its events are judged."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        c = self.conversation
-        host_frame, device_frame, judged = c.host_frame, c.device_frame, self._judged
-        framers = self._framers
-        host = framers[HOST]
+        framers, step = self._framers, self._step
         taken = size = 0
         try:
             for chunk in islice(chunks, limit):
                 taken += 1
-                t, direction, data = chunk.t, chunk.dir, chunk.data
-                framer = framers.get(direction)
-                if chunk.error is None and framer is not None and framer.take_frame(data) is not None:
-                    if framer is host:
-                        if self._device_since is not None and t is not None:
-                            self._tick(t)  # an answer arriving in pieces: its start keeps its window open
-                        judged += host_frame(data, t, t)
-                    else:
-                        self._device_last = t
-                        judged += device_frame(data, t, t)
-                    continue  # (a whole frame is at most MAX_FRAME bytes: a batch of them stays small)
+                framer = framers.get(chunk.dir)
                 if framer is None:
-                    raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
-                self._step(framer, direction, t, data, chunk.error)
-                size += len(data)
+                    raise ValueError(f"chunk direction must be 'host' or 'device', got {chunk.dir!r}")
+                step(framer, chunk.dir, chunk.t, chunk.data, chunk.error)
+                size += len(chunk.data)
                 if size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                     break
         finally:
@@ -108,7 +93,7 @@ class Analyzer:
 
     def _step(self, framer: Framer, direction: Direction, t: float | None, data: bytes,
               error: str | None) -> None:
-        """One chunk, in general: time passes to ``t``, then the chunk's bytes are framed and judged."""
+        """One chunk: time passes to ``t``, then the chunk's bytes are framed and judged."""
         if t is not None:
             self._tick(t)
         if error and data:
