@@ -228,6 +228,7 @@ def test_without_plotly_decode_works_and_report_names_the_extra(tmp_path):
 
 
 def test_report_object_refuses_a_directory(tmp_path):
+    """The session report refuses a directory as its output path, saying so."""
     with pytest.raises(ValueError, match="it is a directory"):
         SessionReport.open(tmp_path, [])
 
