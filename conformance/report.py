@@ -248,8 +248,41 @@ def build(run: Any) -> Report:
     """Gather a finished (or interrupted) run into a ``Report``."""
     from xac1_proto import __version__
 
-    s, dut = run.settings, run.dut
-    options = [
+    s = run.settings
+    checks = [r for r in run.results if not r.info]
+    info_errors = [r for r in run.results if r.info and r.verdict in (FAIL, ERROR)]
+    info_skipped = [r for r in run.results if r.info and r.verdict == SKIP]
+    run_checks = run.total - run.total_info
+    safety, problems, warnings, unverified = _safety(run)
+    rr = run.restore_report
+    restore_failed, restore_unverified = ((list(rr.failed_items), list(rr.unverified_items))
+                                          if rr is not None else ([], []))
+    judged = {r.nodeid for r in run.results}
+    unjudged = [(nodeid, name, info) for nodeid, name, info in run.collected if nodeid not in judged]
+    cut = "interrupted: the run stopped during this check"
+    not_run_checks = [(name + (" (information)" if info else ""),
+                       cut if nodeid in run.interrupted else "not run") for nodeid, name, info in unjudged]
+    who = run.identity
+    unit = [(label, who[key]) for label, key in (("unit id", "unit_id"), ("operator", "operator"),
+                                                 ("station", "station"), ("note", "note")) if who.get(key)]
+    return Report(
+        port=s.port, date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=_options(run, __version__),
+        checks=checks, info_errors=info_errors, safety=safety, safety_problems=problems,
+        abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
+        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
+        stopped=run.stopped or bool(unverified), safety_unverified=unverified, not_run_checks=not_run_checks,
+        interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
+        command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        seed=s.seed, kit_version=__version__, junit=list(run.results),
+        not_run_topics=[_topic(nodeid) for nodeid, _name, info in unjudged if not info],
+        timeout=s.timeout, restore_failed=restore_failed, restore_unverified=restore_unverified,
+        **_device_facts(run.dut))
+
+
+def _options(run: Any, kit_version: str) -> list[tuple[str, str]]:
+    """The run's settings as the report's options table shows them."""
+    s = run.settings
+    return [
         ("port", s.port + ("  (the built-in simulator)" if s.simulator else "")),
         ("motion", "allowed" if s.motion else "not allowed (motion checks skipped)"),
         ("safe range", s.describe_range()),
@@ -257,39 +290,17 @@ def build(run: Any) -> Report:
         ("random sequences", f"{s.examples} (seed {s.seed if s.seed is not None else 'derandomized'})"),
         ("answer timeout", f"{s.timeout:g} s"),
         ("points the suite may write", _scratch_text(run)),
-        ("kit", f"xac1-proto {__version__}"),
+        ("kit", f"xac1-proto {kit_version}"),
     ]
-    checks = [r for r in run.results if not r.info]
-    info_errors = [r for r in run.results if r.info and r.verdict in (FAIL, ERROR)]
-    info_skipped = [r for r in run.results if r.info and r.verdict == SKIP]
-    run_checks = run.total - run.total_info
-    safety, problems, warnings, unverified = _safety(run)
-    rr = run.restore_report
-    judged = {r.nodeid for r in run.results}
-    cut = "interrupted: the run stopped during this check"
-    not_run_checks = [(name + (" (information)" if info else ""),
-                       cut if nodeid in run.interrupted else "not run")
-                      for nodeid, name, info in run.collected if nodeid not in judged]
-    who = run.identity
-    unit = [(label, who[key]) for label, key in (("unit id", "unit_id"), ("operator", "operator"),
-                                                 ("station", "station"), ("note", "note")) if who.get(key)]
-    return Report(
-        port=s.port, version=(dut.version if dut is not None and dut.version else "unknown"),
-        date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=options, checks=checks,
-        infos=list(dut.infos) if dut is not None else [], info_errors=info_errors,
-        timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
-        abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
-        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
-        stopped=run.stopped or bool(unverified), safety_unverified=unverified, not_run_checks=not_run_checks,
-        interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
-        command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
-        seed=s.seed, kit_version=__version__, junit=list(run.results),
-        not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected
-                        if nodeid not in judged and not info],
-        latencies={h: list(v) for h, v in dut.latencies.items() if v} if dut is not None else {},
-        timeout=s.timeout,
-        restore_failed=list(rr.failed_items) if rr is not None else [],
-        restore_unverified=list(rr.unverified_items) if rr is not None else [])
+
+
+def _device_facts(dut: Any) -> dict[str, Any]:
+    """What the device under test told the run (its version, information answers, turnaround); the
+    same fields empty when the device was never opened."""
+    if dut is None:
+        return {"version": "unknown", "infos": [], "timing": [], "latencies": {}}
+    return {"version": dut.version or "unknown", "infos": list(dut.infos), "timing": dut.timing_table(),
+            "latencies": {h: list(v) for h, v in dut.latencies.items() if v}}
 
 
 def _topic(nodeid: str) -> str:
