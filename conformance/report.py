@@ -17,7 +17,7 @@ import shlex
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 from .results import ERROR, FAIL, MANUAL, PASS, SKIP, Result, result_from
 
@@ -262,21 +262,26 @@ def build(run: Any) -> Report:
     cut = "interrupted: the run stopped during this check"
     not_run_checks = [(name + (" (information)" if info else ""),
                        cut if nodeid in run.interrupted else "not run") for nodeid, name, info in unjudged]
-    who = run.identity
-    unit = [(label, who[key]) for label, key in (("unit id", "unit_id"), ("operator", "operator"),
-                                                 ("station", "station"), ("note", "note")) if who.get(key)]
     return Report(
         port=s.port, date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=_options(run, __version__),
         checks=checks, info_errors=info_errors, safety=safety, safety_problems=problems,
         abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
         not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
         stopped=run.stopped or bool(unverified), safety_unverified=unverified, not_run_checks=not_run_checks,
-        interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
+        interrupted=run.interrupted_by, deselected=run.deselected, unit=_unit(run.identity),
         command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seed=s.seed, kit_version=__version__, junit=list(run.results),
         not_run_topics=[_topic(nodeid) for nodeid, _name, info in unjudged if not info],
         timeout=s.timeout, restore_failed=restore_failed, restore_unverified=restore_unverified,
         **_device_facts(run.dut))
+
+
+IDENTITY: Final = (("unit id", "unit_id"), ("operator", "operator"), ("station", "station"), ("note", "note"))
+
+
+def _unit(identity: dict[str, str | None]) -> list[tuple[str, str]]:
+    """The unit's identity as the report's rows (label, value), those given only."""
+    return [(label, value) for label, key in IDENTITY if (value := identity.get(key))]
 
 
 def _options(run: Any, kit_version: str) -> list[tuple[str, str]]:
