@@ -93,21 +93,31 @@ class Analyzer:
 
     def _step(self, framer: Framer, direction: Direction, t: float | None, data: bytes,
               error: str | None) -> None:
-        """One chunk: time passes to ``t``, then the chunk's bytes are framed and judged."""
-        if t is not None:
-            self._tick(t)
+        """One chunk: its bytes framed by its line's framer and judged, time passing to ``t`` first. The
+        usual chunk, one whole frame with nothing pending on its line, the framer takes at once
+        (``Framer.take_frame``) and the engine passes time to its arrival itself: time is passed here
+        first only while a device line is arriving (it may have stalled). Any other chunk: time passes to
+        ``t``, then the framer buffers and cuts its bytes (a device line's partial frame keeps the time it
+        began: an answer that starts in time is in time)."""
         if error and data:
             self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
-        if framer is self._framers[DEVICE] and data:
+        offset = framer.take_frame(data)
+        if t is not None and (offset is None or self._device_since is not None):
+            self._tick(t)
+        device = framer is self._framers[DEVICE]
+        if offset is not None:
+            events: list[FrameBytes | Junk] = [FrameBytes(bytes(data), offset, t, t)]
+        elif device and data:
             pending_before = framer.pending
             events = framer.feed(data, t)
-            self._device_last = t
             if not framer.pending:
                 self._device_since = None
             elif not pending_before:
                 self._device_since = t  # else keep the older time: never expire too early
         else:
             events = framer.feed(data, t)
+        if device and data:
+            self._device_last = t
         if events:
             self._judge(direction, events)
 
