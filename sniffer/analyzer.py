@@ -12,8 +12,9 @@ records of docs/output.md's JSON lines schema when the caller wants records: ``F
 a clock.
 
 One path: ``feed`` (a chunk; the live sniffer) and ``feed_many`` (a batch of chunks in one loop; decode)
-both run each chunk through ``_step``. Records are made only where the output needs them: ``feed_many``
-without a list to fill (``xac1 decode --format summary``) counts the verdicts and makes none.
+both run each chunk through the one loop body of ``feed_many``. Records are made only where the output
+needs them: ``feed_many`` without a list to fill (``xac1 decode --format summary``) counts the verdicts
+and makes none.
 
 Captures without time (raw files, interceptty without ``-T``, sigrok without a sample rate): order is all
 there is; the engine's docstring says what it then concludes.
@@ -70,56 +71,50 @@ class Analyzer:
         exception, Ctrl-C included, loses none of the chunks taken); ``out`` None: no records are made,
         the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
 
-        Each chunk goes through ``_step``: time passes to its time, its bytes are framed by its line's
-        framer (a device line's partial frame keeps the time it began: an answer that starts in time is in
-        time), and its events are judged."""
+        Each chunk, in one loop body: its bytes are framed by its line's framer and judged, time passing
+        to its time first. The usual chunk, one whole frame with nothing pending on its line, the framer
+        takes at once (``Framer.take_frame``) and the engine passes time to its arrival itself: time is
+        passed here first only while a device line is arriving (it may have stalled). Any other chunk:
+        time passes to its time, then the framer buffers and cuts its bytes (a device line's partial
+        frame keeps the time it began: an answer that starts in time is in time)."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        framers, step = self._framers, self._step
+        framers, judge, tick = self._framers, self._judge, self._tick
+        device_framer = framers[DEVICE]
         taken = size = 0
         try:
             for chunk in islice(chunks, limit):
                 taken += 1
-                framer = framers.get(chunk.dir)
+                t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
+                framer = framers.get(direction)
                 if framer is None:
-                    raise ValueError(f"chunk direction must be 'host' or 'device', got {chunk.dir!r}")
-                step(framer, chunk.dir, chunk.t, chunk.data, chunk.error)
-                size += len(chunk.data)
+                    raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
+                if error and data:
+                    self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
+                offset = framer.take_frame(data)
+                if t is not None and (offset is None or self._device_since is not None):
+                    tick(t)
+                if offset is not None:
+                    events: list[FrameBytes | Junk] = [FrameBytes(bytes(data), offset, t, t)]
+                elif framer is device_framer and data:
+                    pending_before = framer.pending
+                    events = framer.feed(data, t)
+                    if not framer.pending:
+                        self._device_since = None
+                    elif not pending_before:
+                        self._device_since = t  # else keep the older time: never expire too early
+                else:
+                    events = framer.feed(data, t)
+                if framer is device_framer and data:
+                    self._device_last = t
+                if events:
+                    judge(direction, events)
+                size += len(data)
                 if size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                     break
         finally:
             self._emit(out)
         return taken
-
-    def _step(self, framer: Framer, direction: Direction, t: float | None, data: bytes,
-              error: str | None) -> None:
-        """One chunk: its bytes framed by its line's framer and judged, time passing to ``t`` first. The
-        usual chunk, one whole frame with nothing pending on its line, the framer takes at once
-        (``Framer.take_frame``) and the engine passes time to its arrival itself: time is passed here
-        first only while a device line is arriving (it may have stalled). Any other chunk: time passes to
-        ``t``, then the framer buffers and cuts its bytes (a device line's partial frame keeps the time it
-        began: an answer that starts in time is in time)."""
-        if error and data:
-            self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
-        offset = framer.take_frame(data)
-        if t is not None and (offset is None or self._device_since is not None):
-            self._tick(t)
-        device = framer is self._framers[DEVICE]
-        if offset is not None:
-            events: list[FrameBytes | Junk] = [FrameBytes(bytes(data), offset, t, t)]
-        elif device and data:
-            pending_before = framer.pending
-            events = framer.feed(data, t)
-            if not framer.pending:
-                self._device_since = None
-            elif not pending_before:
-                self._device_since = t  # else keep the older time: never expire too early
-        else:
-            events = framer.feed(data, t)
-        if device and data:
-            self._device_last = t
-        if events:
-            self._judge(direction, events)
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
