@@ -34,6 +34,9 @@ def check_name(nodeid: str) -> str:
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
+    """The checks collected: the count of those started begins again."""
+    global _started
+    _started = 0
     _tell({"of": len(session.items)})
 
 

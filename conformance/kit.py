@@ -101,7 +101,7 @@ class Kit:
 
     def other_target(self) -> int:
         """A safe target different from where the axis is now (so a move that is not done shows)."""
-        here = self.dut.budget.position
+        here = self.dut.position
         return next((t for t in self.dut.safe_targets(4) if t != here), self.safe_pos(0))
 
     def write_safe_point(self, k: int = 0, v: int = FAST_V, a: int = HIGH_A, o: int | None = None) -> Probe:

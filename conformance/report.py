@@ -17,7 +17,7 @@ import shlex
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 from .results import ERROR, FAIL, MANUAL, PASS, SKIP, Result, result_from
 
@@ -248,8 +248,46 @@ def build(run: Any) -> Report:
     """Gather a finished (or interrupted) run into a ``Report``."""
     from xac1_proto import __version__
 
-    s, dut = run.settings, run.dut
-    options = [
+    s = run.settings
+    checks = [r for r in run.results if not r.info]
+    info_errors = [r for r in run.results if r.info and r.verdict in (FAIL, ERROR)]
+    info_skipped = [r for r in run.results if r.info and r.verdict == SKIP]
+    run_checks = run.total - run.total_info
+    safety, problems, warnings, unverified = _safety(run)
+    rr = run.restore_report
+    restore_failed, restore_unverified = ((list(rr.failed_items), list(rr.unverified_items))
+                                          if rr is not None else ([], []))
+    judged = {r.nodeid for r in run.results}
+    unjudged = [(nodeid, name, info) for nodeid, name, info in run.collected if nodeid not in judged]
+    cut = "interrupted: the run stopped during this check"
+    not_run_checks = [(name + (" (information)" if info else ""),
+                       cut if nodeid in run.interrupted else "not run") for nodeid, name, info in unjudged]
+    return Report(
+        port=s.port, date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=_options(run, __version__),
+        checks=checks, info_errors=info_errors, safety=safety, safety_problems=problems,
+        abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
+        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
+        stopped=run.stopped or bool(unverified), safety_unverified=unverified, not_run_checks=not_run_checks,
+        interrupted=run.interrupted_by, deselected=run.deselected, unit=_unit(run.identity),
+        command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        seed=s.seed, kit_version=__version__, junit=list(run.results),
+        not_run_topics=[_topic(nodeid) for nodeid, _name, info in unjudged if not info],
+        timeout=s.timeout, restore_failed=restore_failed, restore_unverified=restore_unverified,
+        **_device_facts(run.dut))
+
+
+IDENTITY: Final = (("unit id", "unit_id"), ("operator", "operator"), ("station", "station"), ("note", "note"))
+
+
+def _unit(identity: dict[str, str | None]) -> list[tuple[str, str]]:
+    """The unit's identity as the report's rows (label, value), those given only."""
+    return [(label, value) for label, key in IDENTITY if (value := identity.get(key))]
+
+
+def _options(run: Any, kit_version: str) -> list[tuple[str, str]]:
+    """The run's settings as the report's options table shows them."""
+    s = run.settings
+    return [
         ("port", s.port + ("  (the built-in simulator)" if s.simulator else "")),
         ("motion", "allowed" if s.motion else "not allowed (motion checks skipped)"),
         ("safe range", s.describe_range()),
@@ -257,39 +295,17 @@ def build(run: Any) -> Report:
         ("random sequences", f"{s.examples} (seed {s.seed if s.seed is not None else 'derandomized'})"),
         ("answer timeout", f"{s.timeout:g} s"),
         ("points the suite may write", _scratch_text(run)),
-        ("kit", f"xac1-proto {__version__}"),
+        ("kit", f"xac1-proto {kit_version}"),
     ]
-    checks = [r for r in run.results if not r.info]
-    info_errors = [r for r in run.results if r.info and r.verdict in (FAIL, ERROR)]
-    info_skipped = [r for r in run.results if r.info and r.verdict == SKIP]
-    run_checks = run.total - run.total_info
-    safety, problems, warnings, unverified = _safety(run)
-    rr = run.restore_report
-    judged = {r.nodeid for r in run.results}
-    cut = "interrupted: the run stopped during this check"
-    not_run_checks = [(name + (" (information)" if info else ""),
-                       cut if nodeid in run.interrupted else "not run")
-                      for nodeid, name, info in run.collected if nodeid not in judged]
-    who = run.identity
-    unit = [(label, who[key]) for label, key in (("unit id", "unit_id"), ("operator", "operator"),
-                                                 ("station", "station"), ("note", "note")) if who.get(key)]
-    return Report(
-        port=s.port, version=(dut.version if dut is not None and dut.version else "unknown"),
-        date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=options, checks=checks,
-        infos=list(dut.infos) if dut is not None else [], info_errors=info_errors,
-        timing=dut.timing_table() if dut is not None else [], safety=safety, safety_problems=problems,
-        abort=run.abort, safety_warnings=warnings, no_answer=run.no_answer,
-        not_run=max(run_checks - len(checks), 0), info_skipped=info_skipped,
-        stopped=run.stopped or bool(unverified), safety_unverified=unverified, not_run_checks=not_run_checks,
-        interrupted=run.interrupted_by, deselected=run.deselected, unit=unit,
-        command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
-        seed=s.seed, kit_version=__version__, junit=list(run.results),
-        not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected
-                        if nodeid not in judged and not info],
-        latencies={h: list(v) for h, v in dut.latencies.items() if v} if dut is not None else {},
-        timeout=s.timeout,
-        restore_failed=list(rr.failed_items) if rr is not None else [],
-        restore_unverified=list(rr.unverified_items) if rr is not None else [])
+
+
+def _device_facts(dut: Any) -> dict[str, Any]:
+    """What the device under test told the run (its version, information answers, turnaround); the
+    same fields empty when the device was never opened."""
+    if dut is None:
+        return {"version": "unknown", "infos": [], "timing": [], "latencies": {}}
+    return {"version": dut.version or "unknown", "infos": list(dut.infos), "timing": dut.timing_table(),
+            "latencies": {h: list(v) for h, v in dut.latencies.items() if v}}
 
 
 def _topic(nodeid: str) -> str:
@@ -419,15 +435,14 @@ PICTURES_HINT = "pip install 'xac1-proto[report]'"  # the extra that draws the r
 def pictures(rep: Report) -> dict[str, Any] | None:
     """The HTML report's figures (issue 17): the rule groups as stacked bars and, when turnaround means
     something (``timing_meaningful``), its histogram per command with the answer deadline, drawn by the
-    session report's plotly helpers (``sniffer.report.plots``), with plotly.js to inline once. None when
+    reports' plotly fragments (``xac1_proto.pages.figures``), with plotly.js to inline once. None when
     plotly (the ``report`` extra) is not installed: the page is then the same without the pictures."""
     import html
-    import importlib
 
     from markupsafe import Markup
 
     try:
-        plots = importlib.import_module("sniffer.report.plots")
+        from xac1_proto.pages import figures
     except ImportError:
         return None
     # Names reach plotly's labels, which read HTML: escaped, as the page's own text is.
@@ -438,12 +453,13 @@ def pictures(rep: Report) -> dict[str, Any] | None:
     turnaround = None
     if rep.latencies and rep.timing_meaningful:
         deadline = rep.timeout * 1000.0 if rep.timeout is not None else None
-        turnaround = Markup(plots.turnaround_histogram(
+        turnaround = Markup(figures.turnaround_histogram(
             {html.escape(h): [t * 1000.0 for t in v] for h, v in rep.latencies.items()},
             title="Answer turnaround per command", deadline_ms=deadline))
-    return {"groups": Markup(plots.group_summary(groups, title="Checks per rule group")) if groups else None,
+    summary = Markup(figures.group_summary(groups, title="Checks per rule group")) if groups else None
+    return {"groups": summary,
             "turnaround": turnaround,
-            "js": Markup(plots.plotly_js().replace("</script", "<\\/script"))}
+            "js": Markup(figures.plotly_js().replace("</script", "<\\/script"))}
 
 
 def render_page(rep: Report, kind: str) -> str:

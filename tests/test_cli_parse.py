@@ -11,17 +11,21 @@ pytestmark = pytest.mark.slow  # xac1 as a subprocess
 
 
 def test_version():
+    """``xac1 --version`` exits 0 and prints the package's version."""
     r = xac1("--version")
     assert r.returncode == 0 and xac1_proto.__version__ in r.stdout
 
 
 def test_parse_vendor_answer_prints_fields():
+    """``xac1 parse`` of the vendor's 0RP answer example prints its fields, the position in hex and
+    decimal."""
     r = xac1("parse", r"0RP39302012345\r\n", "--role", "answer")
     assert r.returncode == 0, r.stderr
     assert "N=3 V=9 A=3 O=0 Pos=0x012345 (74565)" in r.stdout
 
 
 def test_parse_letter_o_explains_and_exits_2():
+    """A command sent with letter O for zero is named (``letter-o``), read as what it meant, and exits 2."""
     r = xac1("parse", r"ORP3\r\n", "--role", "command")
     assert r.returncode == 2
     assert "letter O" in r.stderr and "(letter-o)" in r.stderr
@@ -30,17 +34,20 @@ def test_parse_letter_o_explains_and_exits_2():
 
 
 def test_parse_hex_input_and_alarm_meaning():
+    """``--hex`` input is read as bytes; an alarm answer is shown with its meaning from the alarm table."""
     r = xac1("parse", "30 25 25 30 45 0d 0a", "--hex", "--role", "answer")
     assert r.returncode == 0 and "emergency stop" in r.stdout
 
 
 def test_parse_lists_every_deviation():
+    """A frame with several faults lists each (``bad-length`` and ``missing-2``) and exits 2."""
     r = xac1("parse", r"0RS1\r\n", "--role", "answer")
     assert r.returncode == 2
     assert "(bad-length)" in r.stderr and "(missing-2)" in r.stderr
 
 
 def test_parse_without_terminator_says_so():
+    """A line with no LF is refused saying so (exit 2)."""
     r = xac1("parse", "0RV", "--role", "command")
     assert r.returncode == 2 and "no LF at the end" in r.stderr
 

@@ -55,6 +55,7 @@ def test_missing_2_message_names_expected_and_seen():
 
 
 def test_letter_o_is_recognised_leniently():
+    """The lenient decoder reads ``ORP1`` as 0RP and names the ``letter-o`` violation (docs/protocol.md)."""
     frame, violations = x.diagnose(b"ORP1\r\n", "command")
     assert frame == x.ReadPoint(n=1)
     assert [v.code for v in violations] == ["letter-o"]
@@ -62,12 +63,14 @@ def test_letter_o_is_recognised_leniently():
 
 
 def test_lowercase_hex_decodes_with_a_notice():
+    """Lower-case hex digits decode, with a ``lowercase-hex`` violation at their offset."""
     frame, violations = x.diagnose(b"0RPa\r\n", "command")
     assert frame == x.ReadPoint(n=10)
     assert [(v.code, v.offset) for v in violations] == [("lowercase-hex", 3)]
 
 
 def test_answer_without_its_2_decodes_with_missing_2_and_bad_length():
+    """A 0RS answer missing its fixed ``2`` decodes leniently with ``missing-2`` and ``bad-length``."""
     frame, violations = x.diagnose(b"0RS1\r\n", "answer")
     assert frame == x.ReadOutputsAnswer(o=1)
     assert sorted(v.code for v in violations) == ["bad-length", "missing-2"]
@@ -81,6 +84,7 @@ def test_point_answer_with_omitted_2_keeps_its_position():
 
 
 def test_out_of_range_values_are_kept_leniently():
+    """Out-of-range field values are kept as read, each named with ``field-range`` at its offset."""
     frame, violations = x.diagnose(b"0WP10402012345\r\n", "command")
     assert frame is not None and frame.fields()["v"] == 0 and frame.fields()["a"] == 4
     assert [(v.code, v.offset) for v in violations] == [("field-range", 4), ("field-range", 5)]
@@ -95,11 +99,13 @@ def test_alarm_codes_outside_the_meaning_table_are_notices_not_errors(code, noti
 
 
 def test_role_must_be_command_or_answer():
+    """A role other than command or answer is a ``ValueError``."""
     with pytest.raises(ValueError, match="role must be"):
         x.parse(b"0RV\r\n", "reply")
 
 
 def test_every_violation_code_is_in_the_vocabulary():
+    """Every violation the decoder names for the strict-error table is a code of ``spec.VIOLATIONS``."""
     for wire, role, _, _ in STRICT_ERRORS:
         for v in x.diagnose(wire, role)[1]:
             assert v.code in spec.VIOLATIONS
@@ -135,6 +141,8 @@ def test_every_single_byte_change_is_a_frame_or_a_frame_error(frame, data):
 @settings(max_examples=budget(500))
 @given(st.binary(max_size=40), st.sampled_from(spec.ROLES))
 def test_arbitrary_bytes_raise_only_frame_error_and_diagnose_never_raises(data, role):
+    """Any bytes: ``diagnose`` never raises and names only known codes; ``parse`` returns a frame or raises
+    ``FrameError`` only."""
     frame, violations = x.diagnose(data, role)
     assert all(v.code in spec.VIOLATIONS for v in violations)
     try:
@@ -147,6 +155,8 @@ def test_arbitrary_bytes_raise_only_frame_error_and_diagnose_never_raises(data, 
 
 @given(st.sampled_from(sorted(spec.SPECS)), st.binary(max_size=20))
 def test_header_plus_arbitrary_tail_never_escapes_frame_error(key, tail):
+    """A known header with any tail: ``parse`` raises nothing but ``FrameError`` and ``diagnose`` never
+    raises."""
     header, role = key
     data = header.encode() + tail
     frame, violations = x.diagnose(data, role)

@@ -64,6 +64,8 @@ def _alarm_latched(client: Client) -> bool:
 
 @pytest.mark.parametrize("route", ["restore", "plugin"])
 def test_restore_resets_an_alarm_latched_unbeknown(sim, monkeypatch, route):
+    """Restoring after an interrupted run resets an alarm the run latched without knowing, and puts the
+    settings back."""
     dut = _interrupted_after_malformed(sim)
     try:
         snap = take_snapshot(dut)

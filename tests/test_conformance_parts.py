@@ -26,7 +26,6 @@ def test_fleet_progress_tells_the_pipe_what_the_fleet_shows(monkeypatch):
     live line."""
     read_fd, write_fd = os.pipe()
     monkeypatch.setenv(fleet_progress.ENV, str(write_fd))
-    monkeypatch.setattr(fleet_progress, "_started", 0)
     fleet_progress.pytest_collection_finish(SimpleNamespace(items=[1, 2, 3]))  # type: ignore[arg-type]
     fleet_progress.pytest_runtest_logstart("conformance/checks/test_alarms.py::test_alarm_latched[0WP]", None)
     os.close(write_fd)
@@ -41,11 +40,21 @@ def test_fleet_progress_tells_the_pipe_what_the_fleet_shows(monkeypatch):
 
 
 def test_fleet_progress_without_the_variable_does_nothing(monkeypatch):
-    """Run alone (no fleet), the plugin writes nothing anywhere and never fails the run."""
-    monkeypatch.delenv(fleet_progress.ENV, raising=False)
-    fleet_progress._tell({"of": 1})
-    monkeypatch.setenv(fleet_progress.ENV, "not-a-number")
-    fleet_progress._tell({"of": 1})
+    """Run alone (no fleet), the plugin writes nothing anywhere and never fails the run: with no fd named,
+    or a name that is no fd, nothing reaches the pipe it would otherwise write to."""
+    read_fd, write_fd = os.pipe()
+    session = SimpleNamespace(items=[1, 2])
+    try:
+        monkeypatch.delenv(fleet_progress.ENV, raising=False)
+        fleet_progress.pytest_collection_finish(session)  # type: ignore[arg-type]
+        monkeypatch.setenv(fleet_progress.ENV, "not-a-number")
+        fleet_progress.pytest_collection_finish(session)  # type: ignore[arg-type]
+        monkeypatch.setenv(fleet_progress.ENV, str(write_fd))  # the one told line, proving the pipe works
+        fleet_progress.pytest_collection_finish(session)  # type: ignore[arg-type]
+    finally:
+        os.close(write_fd)
+    with os.fdopen(read_fd, "rb") as pipe:
+        assert pipe.read() == b'{"of": 2}\n'
 
 
 def test_progress_off_a_terminal_prints_a_line_per_rule_group():

@@ -16,6 +16,7 @@ import pytest
 from session_report_browser import CHROMIUM, Browser
 from test_fleet import MOTION, Sim
 
+import xac1_proto.pages
 from conformance import report as creport
 from conformance.report import PICTURES_HINT, Report
 from conformance.results import Result
@@ -44,7 +45,8 @@ def test_pictures_in_the_html_report_only_when_plotly_is_there(monkeypatch):
     page = creport.html_page(rep)
     assert page.count(FIGURE) == 2 and 'id="group-summary"' in page and 'id="turnaround-histogram"' in page
     assert PICTURES_HINT not in page and page.count("<script>") >= 1
-    monkeypatch.delitem(sys.modules, "sniffer.report.plots", raising=False)
+    monkeypatch.delitem(sys.modules, "xac1_proto.pages.figures", raising=False)
+    monkeypatch.delattr(xac1_proto.pages, "figures", raising=False)  # loaded afresh: plotly is then missing
     monkeypatch.setitem(sys.modules, "plotly", None)  # `import plotly` now raises ImportError
     plain = creport.html_page(rep)
     assert FIGURE not in plain and "plotly" not in plain.lower().replace(PICTURES_HINT, "")

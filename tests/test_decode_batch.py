@@ -55,6 +55,8 @@ def rows(out: str) -> list[dict]:
 
 
 def test_expand_takes_directories_files_and_globs_in_order_without_repeats(archive):
+    """``--batch`` arguments: files, directories and globs expand in order, each file once; what matches
+    nothing is said."""
     files, wrong, skipped = expand([str(archive / "c-clean.pcapng"), str(archive), str(archive / "b-*"),
                                     str(archive / "nothing-*")])
     names = [Path(f).name for f in files]
@@ -65,6 +67,8 @@ def test_expand_takes_directories_files_and_globs_in_order_without_repeats(archi
 
 @pytest.mark.parametrize("jobs", ["1", "2"])
 def test_batch_rows_are_each_files_own_summary_and_the_total_adds_them(archive, capsys, jobs):
+    """A batch prints one row per file with that file's own summary, and a total that adds them; the status is
+    the worst file's."""
     status = main(["decode", "--batch", str(archive), "--format", "jsonl", "--jobs", jobs])
     got = rows(capsys.readouterr().out)
     assert status == 1  # b-silent has no-answer violations
@@ -83,6 +87,7 @@ def test_batch_rows_are_each_files_own_summary_and_the_total_adds_them(archive, 
 
 
 def test_one_and_two_jobs_print_the_same(archive, capsys):
+    """The number of jobs changes nothing in what a batch prints."""
     outs = []
     for jobs in ("1", "2"):
         main(["decode", "--batch", str(archive / "*.pcapng"), "-f", "jsonl", "-j", jobs])
@@ -91,6 +96,8 @@ def test_one_and_two_jobs_print_the_same(archive, capsys):
 
 
 def test_text_rows_and_a_failed_file(archive, capsys):
+    """A file that decodes nothing is a failed row and makes the batch exit 2; the text rows name every
+    file."""
     (archive / "d-notes.txt").write_text("not a capture\n")
     status = main(["decode", "--batch", str(archive), "-j", "2"])
     cap = capsys.readouterr()
@@ -103,17 +110,21 @@ def test_text_rows_and_a_failed_file(archive, capsys):
 
 
 def test_per_record_options_are_refused_in_a_batch(archive, capsys):
+    """Options about single records (``--only-violations``) are refused with ``--batch``, naming the
+    option."""
     assert main(["decode", "--batch", str(archive), "--only-violations"]) == 2
     assert "--only-violations" in capsys.readouterr().err
 
 
 def test_nothing_matches(tmp_path, capsys):
+    """A batch whose patterns match no file says so and exits 2."""
     assert main(["decode", "--batch", str(tmp_path / "none-*.pcapng")]) == 2
     assert "no file matches" in capsys.readouterr().err
 
 
 @pytest.mark.slow
 def test_batch_as_a_user_runs_it(archive):
+    """``xac1 decode --batch`` as a process: one row per file and the total, exit 1 for violations."""
     done = xac1("decode", "--batch", str(archive), "-f", "jsonl")
     assert done.returncode == 1, done.stderr
     assert [r["type"] for r in rows(done.stdout)] == ["file", "file", "file", "total"]

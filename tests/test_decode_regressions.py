@@ -162,6 +162,8 @@ def test_socat_timestamp_with_hour_27_is_a_problem_not_a_traceback(tmp_path: Pat
 
 @pytest.mark.slow  # starts a process
 def test_jpnevulator_day_32_is_a_problem_not_a_traceback(tmp_path: Path) -> None:
+    """An impossible date in a jpnevulator capture is reported as a problem naming the line, not a
+    traceback."""
     lines = (CAPTURES / "jpnevulator.txt").read_text().splitlines(keepends=True)
     lines[0] = re.sub(r"^(\d{4}-\d\d)-\d\d", r"\1-32", lines[0])
     bad = tmp_path / "d32.txt"
@@ -273,6 +275,7 @@ def test_bad_option_values_are_rejected(option: str, value: str, words: str) -> 
 
 @pytest.mark.slow  # starts a process
 def test_lower_case_header_option_is_read_as_the_header() -> None:
+    """``--header 0wp`` selects the 0WP frames: the header option is read case-insensitively."""
     result = xac1(str(CAPTURES / "socat-x.log"), "--header", "0wp", "--format", "jsonl")
     assert {json.loads(line).get("header") for line in result.stdout.splitlines()[:-1]} == {"0WP"}
 

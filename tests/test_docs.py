@@ -356,3 +356,58 @@ def test_citations_of_the_readme_name_its_sections():
                 line = text.count("\n", 0, m.start()) + 1
                 bad.append(f"{path.relative_to(ROOT)}:{line}: {m.group(1)!r}")
     assert not bad, "README sections cited that the README does not have:\n" + "\n".join(bad)
+
+
+# ---- the module table of docs/architecture.md ----
+
+ARCHITECTURE = Path(__file__).resolve().parent.parent / "docs" / "architecture.md"
+NAMED_BY_FOLDER = ("conformance/checks/",)  # one module per protocol topic: the folder names them
+
+
+def named_modules(text: str) -> set[str]:
+    """The module paths architecture.md's "Module names" table names: a row's first path gives the folder
+    (``sniffer/analyzer.py`` -> ``sniffer/``; ``xac1_proto/sim/``), against which every other ``name.py``
+    in the row is read; a path with a slash is read as it is."""
+    section = text[text.index("## Module names"):]
+    named = set()
+    for row in section.splitlines():
+        paths = re.findall(r"`([\w./]+)`", row)
+        if not row.startswith("| `") or not paths:
+            continue
+        first = paths[0]
+        folder = first if first.endswith("/") else first.rpartition("/")[0] + "/"
+        for path in paths:
+            if path.endswith((".py", "/")):
+                whole = path.startswith(("xac1_proto/", "sniffer/", "conformance/"))
+                named.add(path if whole else folder + path)
+    return named
+
+
+def unnamed_modules(root: Path, named: set[str]) -> list[str]:
+    """The modules of the three packages the table does not name (``__init__.py`` and the checks aside)."""
+    out = []
+    for package in ("xac1_proto", "sniffer", "conformance"):
+        for path in sorted((root / package).rglob("*.py")):
+            rel = path.relative_to(root).as_posix()
+            if path.name != "__init__.py" and rel not in named and not rel.startswith(NAMED_BY_FOLDER):
+                out.append(rel)
+    return out
+
+
+def test_architecture_names_every_module():
+    """docs/architecture.md's module table names every module of xac1_proto, sniffer and conformance, so a
+    new module cannot go undocumented."""
+    named = named_modules(ARCHITECTURE.read_text(encoding="utf-8"))
+    assert unnamed_modules(ARCHITECTURE.parent.parent, named) == []
+
+
+def test_the_module_table_reader_reads_rows_and_misses(tmp_path):
+    """The reader above is not vacuous: names in a row are read against its folder, and a module the table
+    leaves out is reported."""
+    text = "## Module names\n| `sniffer/analyzer.py`, `view.py` | x |\n| `xac1_proto/sim/` | `model.py` |\n"
+    assert named_modules(text) == {"sniffer/analyzer.py", "sniffer/view.py", "xac1_proto/sim/",
+                                   "xac1_proto/sim/model.py"}
+    for rel in ("sniffer/analyzer.py", "sniffer/view.py", "sniffer/new.py", "xac1_proto/sim/model.py"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text("")
+    assert unnamed_modules(tmp_path, named_modules(text)) == ["sniffer/new.py"]

@@ -51,17 +51,21 @@ def agrees(data: bytes, role: str) -> None:
 
 @given(wire_frames())
 def test_every_frame_kind_agrees(case: tuple[bytes, str]) -> None:
+    """For every frame kind, the quick decode of well-formed frames reads what the grammar reads."""
     agrees(*case)
 
 
 @given(wire_frames(), st.integers(0, 20), st.integers(0, 255), st.sampled_from(["replace", "insert", "drop"]))
 def test_mutated_frames_agree(case: tuple[bytes, str], at: int, byte: int, how: str) -> None:
+    """A frame with a byte changed, inserted or removed: the quick decode agrees with the grammar (or leaves
+    it to the grammar)."""
     data, role = case
     agrees(mutated(data, at, byte, how), role)
 
 
 @given(st.binary(max_size=24), ROLES)
 def test_arbitrary_bytes_agree(data: bytes, role: str) -> None:
+    """Any bytes: the quick decode agrees with the grammar."""
     agrees(data, role)
 
 

@@ -79,6 +79,8 @@ def test_plugin_fleet_bad_input_names_the_plugin_options(sims, tmp_path, extra, 
 
 
 def test_plugin_flags_translates_only_known_options():
+    """The fleet's hint translates the plugin's known options to their ``--xac1-`` names and leaves others
+    alone."""
     assert plugin_flags("--report-dir DIR and --ports FILE, not --xac1-seed or --bogus") == (
         "--xac1-report-dir DIR and --xac1-ports FILE, not --xac1-seed or --bogus")
 

@@ -66,6 +66,7 @@ def test_cases(stream, expected, feeding):
 
 
 def test_timestamps_are_those_of_first_and_last_byte():
+    """A frame's times are those of the chunks holding its first and its last byte."""
     framer = Framer()
     assert framer.feed(b"0R", 1.0) == []
     assert framer.feed(b"P3\r", 2.0) == []
@@ -76,6 +77,7 @@ def test_timestamps_are_those_of_first_and_last_byte():
 
 
 def test_buffer_is_bounded():
+    """A stream with no LF never grows the framer's pending bytes past one frame's limit and a chunk."""
     framer = Framer()
     for _ in range(1000):
         framer.feed(b"0A12345678")
@@ -91,6 +93,7 @@ segments = st.one_of(
 @settings(max_examples=budget(300))
 @given(st.lists(segments, max_size=8), st.lists(st.integers(0, 400), max_size=12))
 def test_chunking_never_changes_events_and_every_byte_is_accounted(parts, cuts):
+    """Any cutting of a stream gives the same events, and every byte fed is in exactly one event."""
     stream = b"".join(raw for _, raw in parts)
     whole = run(stream)
     assert shape(run(stream, cuts)) == shape(whole)

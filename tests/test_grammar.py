@@ -108,12 +108,14 @@ def test_move_point_accepts_zero_for_homing_but_read_point_does_not():
 
 
 def test_frames_are_frozen():
+    """A frame's field cannot be assigned."""
     frame = x.ReadPoint(n=3)
     with pytest.raises(AttributeError):
         frame.n = 4  # type: ignore[misc]
 
 
 def test_alarm_meanings_come_from_the_table():
+    """An alarm's meaning comes from the alarm table: known, reserved and unknown codes."""
     assert x.AlarmAnswer(code=0x0E).meaning == "emergency stop"
     assert "reserved" in x.AlarmAnswer(code=2).meaning
     assert "unknown" in x.AlarmAnswer(code=0x42).meaning

@@ -196,8 +196,23 @@ def test_help_table_matches_each_module(name):
 PACKAGES = ("xac1_proto", "sniffer", "conformance")
 
 
+def dynamic_import(node: ast.AST) -> str | None:
+    """The module a call ``importlib.import_module("literal")``, ``import_module("literal")`` or
+    ``__import__("literal")`` loads; None for any other node (or a name not written out)."""
+    if not isinstance(node, ast.Call) or not node.args:
+        return None
+    func = node.func
+    called = func.attr if isinstance(func, ast.Attribute) else func.id if isinstance(func, ast.Name) else ""
+    first = node.args[0]
+    if called in {"import_module", "__import__"} and isinstance(first, ast.Constant) \
+            and isinstance(first.value, str):
+        return first.value
+    return None
+
+
 def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
-    """Module -> the project's modules it imports, at module level or inside a function."""
+    """Module -> the project's modules it imports, at module level or inside a function, by an import
+    statement or by ``importlib.import_module``/``__import__`` of a literal name."""
     files = {}
     for pkg in PACKAGES:
         for path in (root / pkg).rglob("*.py"):
@@ -216,6 +231,8 @@ def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
                     up = package.split(".")[: len(package.split(".")) - (node.level - 1)]
                     base = ".".join(up + ([base] if base else []))
                 targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in files else base for a in node.names]
+            elif (name := dynamic_import(node)) is not None:
+                targets = [name]
             else:
                 continue
             for target in targets:
@@ -269,4 +286,80 @@ def test_no_import_cycle():
 
 
 def test_cycle_check_finds_a_cycle():
+    """The cycle check is not vacuous: a loop of three modules is found, a module leading into it is not part
+    of it."""
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_dynamic_imports_are_arrows_too():
+    """``importlib.import_module("x")`` and ``__import__("x")`` with a literal name count as imports."""
+    tree = ast.parse("import importlib\nimportlib.import_module('a.b')\n__import__('c')\n"
+                     "importlib.import_module(name)\nprint('d')")
+    assert [n for node in ast.walk(tree) if (n := dynamic_import(node))] == ["a.b", "c"]
+
+
+# ---- packages in layers ----
+
+# Each package's layer, lowest first (docs/architecture.md "Layers"). A package here is a subpackage, or a
+# shell module that sits apart from the flat modules of xac1_proto (the core and its small helpers). A
+# package imports only packages of a lower layer: never one beside it (the same layer) or above it.
+LAYERS = {
+    "xac1_proto": 0,  # the sans-IO core and the small helpers beside it (chunk, recording, signals...)
+    "xac1_proto.pages": 1, "xac1_proto.sim": 1,  # report pages; the simulator (its model and shells)
+    "xac1_proto.urlhandler": 2,  # xac1sim://, around the simulator's model
+    "xac1_proto.client": 3,  # the host client, which opens URLs and so registers xac1sim://
+    "xac1_proto.console": 4, "xac1_proto.dut": 4,  # the console; the device under test (through a client)
+    "xac1_proto.cli": 5, "xac1_proto.entry": 6,  # the xac1 commands; the console script
+    "xac1_proto.__main__": 7,  # python -m xac1_proto
+    "sniffer": 7, "conformance": 7,  # side by side above the core, each its own
+}
+FACADE = "xac1_proto"  # the package's lazy public face: it names its modules as strings (and imports them
+# for type checkers only), so it sits on top of them all and is left out of the arrows
+
+
+def package_of(module: str) -> str:
+    """The innermost package of ``LAYERS`` a module belongs to."""
+    parts = module.split(".")
+    for n in range(len(parts), 0, -1):
+        if ".".join(parts[:n]) in LAYERS:
+            return ".".join(parts[:n])
+    raise AssertionError(f"{module} is in no package of LAYERS: add its package to the table")
+
+
+def package_arrows(graph: dict[str, set[str]]) -> set[tuple[str, str]]:
+    """(importer's package, imported package) for every import across packages."""
+    return {(package_of(m), package_of(d)) for m, deps in graph.items() if m != FACADE for d in deps
+            if package_of(m) != package_of(d)}
+
+
+def layer_breaks(arrows: set[tuple[str, str]]) -> list[str]:
+    """The arrows that go sideways or up (to a package of the same or a higher layer)."""
+    return sorted(f"{a} -> {b}" for a, b in arrows if LAYERS[b] >= LAYERS[a])
+
+
+def test_packages_import_only_below_them():
+    """No package imports one beside or above it: sniffer and conformance only import xac1_proto, never
+    each other; inside xac1_proto a shell package (sim, dut, cli...) imports only packages below it
+    (import statements and literal dynamic imports alike), so no package loop exists."""
+    arrows = package_arrows(import_graph())
+    assert {("sniffer", "xac1_proto.dut"), ("conformance", "xac1_proto.dut"),
+            ("conformance", "xac1_proto.pages")} <= arrows
+    assert layer_breaks(arrows) == []
+
+
+def test_layer_check_catches_sideways_and_upward_arrows():
+    """The check above is not vacuous: sniffer -> conformance (beside) and xac1_proto -> sniffer (above)
+    are both caught; xac1_proto.cli -> xac1_proto.sim (below) is not."""
+    found = layer_breaks({("sniffer", "conformance"), ("xac1_proto", "sniffer"),
+                          ("xac1_proto.cli", "xac1_proto.sim")})
+    assert found == ["sniffer -> conformance", "xac1_proto -> sniffer"]
+
+
+@pytest.mark.slow  # starts a process
+def test_sim_model_loads_no_io():
+    """``import xac1_proto.sim.model`` (the sans-IO device model) loads no serial port, socket, thread,
+    runner or URL handler, and registers no URL handler with pyserial."""
+    modules = loaded_after("import xac1_proto.sim.model")
+    assert "xac1_proto.sim.model" in modules
+    assert [m for m in forbidden(modules) if not m.startswith("xac1_proto.sim")] == []
+    assert [m for m in modules if m in {"xac1_proto.sim.runner", "xac1_proto.sim.cli"}] == []

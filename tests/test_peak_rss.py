@@ -34,6 +34,7 @@ def test_a_large_caller_does_not_inflate_the_childs_peak() -> None:
 
 @pytest.mark.slow  # starts a process
 def test_the_childs_own_growth_is_counted_and_its_exit_status_kept() -> None:
+    """The peak RSS measured is the child's own growth, and its exit status is kept (killed children too)."""
     grows = "b = bytearray(100 << 20); b[::4096] = b'1' * len(b[::4096]); raise SystemExit(3)"
     code, peak = run_measuring_peak_rss([sys.executable, "-c", grows])
     assert code == 3 and 100 < peak < 150, peak

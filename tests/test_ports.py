@@ -135,6 +135,7 @@ def test_usb_adapters_listed_with_stable_names(monkeypatch, tmp_path, capsys):
 
 
 def test_no_ports_says_how_to_add_one(monkeypatch, capsys):
+    """``xac1 ports`` with no serial port says so (exit 0); a zero timeout is refused (exit 2)."""
     monkeypatch.setattr(list_ports, "comports", lambda include_links=False: [])
     assert main(["ports"]) == 0
     assert "no serial ports found" in capsys.readouterr().out

@@ -228,6 +228,7 @@ def test_without_plotly_decode_works_and_report_names_the_extra(tmp_path):
 
 
 def test_report_object_refuses_a_directory(tmp_path):
+    """The session report refuses a directory as its output path, saying so."""
     with pytest.raises(ValueError, match="it is a directory"):
         SessionReport.open(tmp_path, [])
 
@@ -378,11 +379,11 @@ def test_proxy_report_written_on_sigterm(tmp_path):
 
 
 def test_turnaround_histogram_fragment_for_other_reports():
-    """``plots.turnaround_histogram``: an HTML fragment (no plotly.js in it: the page inlines it once)
+    """``figures.turnaround_histogram``: an HTML fragment (no plotly.js in it: the page inlines it once)
     with one histogram per command and the deadline line, for the conformance report to embed."""
-    from sniffer.report import plots
+    from xac1_proto.pages import figures
 
-    fragment = plots.turnaround_histogram({"0RV": [2.0, 2.5, 3.0], "0RP": [4.0]}, title="Turnaround <x>")
+    fragment = figures.turnaround_histogram({"0RV": [2.0, 2.5, 3.0], "0RP": [4.0]}, title="Turnaround <x>")
     assert fragment.startswith("<div") and "Plotly.newPlot" in fragment
     assert "plotly.min.js" not in fragment and len(fragment) < 20_000
     assert '"name":"0RV"' in fragment and '"x":[2.0,2.5,3.0]' in fragment and "deadline 1000 ms" in fragment
@@ -390,10 +391,10 @@ def test_turnaround_histogram_fragment_for_other_reports():
 
 
 def test_group_summary_fragment_for_other_reports():
-    """``plots.group_summary``: one stacked bar per group of its outcome counts, as a fragment."""
-    from sniffer.report import plots
+    """``figures.group_summary``: one stacked bar per group of its outcome counts, as a fragment."""
+    from xac1_proto.pages import figures
 
-    fragment = plots.group_summary({"framing": {"passed": 9, "failed": 1}, "alarms": {"skipped": 2}})
+    fragment = figures.group_summary({"framing": {"passed": 9, "failed": 1}, "alarms": {"skipped": 2}})
     assert "Plotly.newPlot" in fragment and "plotly.min.js" not in fragment
     assert '"name":"passed"' in fragment and '"x":[9,0]' in fragment and '"x":[1,0]' in fragment
     assert '"x":[0,2]' in fragment and '"y":["framing","alarms"]' in fragment

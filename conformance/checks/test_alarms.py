@@ -99,4 +99,3 @@ def test_estop_survives_reset(xac1_dut):
         sim.set_estop(False)
         xac1_dut.client.conversation.stop_input(False, unhomes=sim.config.estop_rehome)
         xac1_dut.latched = None  # the next check resets whatever is left
-        xac1_dut.budget.homed = None

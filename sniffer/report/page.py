@@ -14,6 +14,7 @@ from markupsafe import Markup
 
 from xac1_proto import spec
 from xac1_proto.output_file import write_output
+from xac1_proto.pages import figures as fragments
 from xac1_proto.pages import render
 
 from . import plots
@@ -84,9 +85,9 @@ def context(agg: SessionAggregator, title: str = "XA-C1 session report") -> dict
         "kept": len(agg.records), "total": agg.total_records, "limits": agg.limits,
         "thinned": agg.positions.thinned or agg.latency_points.thinned,
         "figures": list(figures), "deadline_ms": agg.no_answer_timeout * 1000.0,
-        "plotly_js": Markup(plots.plotly_js().replace("</script", "<\\/script")) if figures else "",
+        "plotly_js": Markup(fragments.plotly_js().replace("</script", "<\\/script")) if figures else "",
         "figures_json": _script_json(figures_json), "data_json": _script_json(data),
-        "config_json": _script_json(plots.CONFIG),
+        "config_json": _script_json(fragments.CONFIG),
         "generated": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
     }
 

@@ -1,10 +1,11 @@
 """The device under test: one client, one choke point for every byte sent, the motion guard.
 
 Every probe goes through ``DeviceUnderTest.probe`` (the client's ``transact``), which records it as
-evidence for the running check, keeps turnaround times per command and learns the axis state
-(``MoveBudget``). Before a move command is sent, whatever the alarm state, the guard checks that motion
-is allowed and that the target (a point's stored Pos for 0MP) and any homing on the way stay inside the
-safe range; otherwise the probe is refused with ``MotionRefused`` and nothing is sent.
+evidence for the running check and keeps turnaround times per command; what is known of the axis (homed,
+position, the points' stored targets) is the engine's (the client's ``conversation.knowledge``). Before
+a move command is sent, whatever the alarm state, the guard checks that motion is allowed and that the
+target (a point's stored Pos for 0MP) and any homing on the way stay inside the safe range; otherwise the
+probe is refused with ``MotionRefused`` and nothing is sent.
 
 Silence is told apart from a device that went away by the liveness check ``settle`` (0%C then 0RV),
 run between checks, after a check whose last probe got no byte back, and as soon as ``SILENT_LIMIT``
@@ -37,7 +38,6 @@ from xac1_proto.frames import (
     ReadVersionAnswer,
     WriteOutputsAnswer,
 )
-from xac1_proto.movewait import MoveBudget
 
 from .evidence import Probe, describe_answer
 from .settings import Settings
@@ -84,7 +84,6 @@ class DeviceUnderTest:
     def __init__(self, settings: Settings, client: Any) -> None:
         self.settings = settings
         self.client = client
-        self.budget = MoveBudget()
         self.log: list[Probe] = []
         self.infos: list[Info] = []
         self.latencies: dict[str, list[float]] = {}
@@ -128,7 +127,6 @@ class DeviceUnderTest:
         except ResponseTimeout as exc:
             p = Probe.silence(self.test, raw, exc.partial)
             self.latched = None
-            self.budget.observe(command, None, False)
         except CommunicationHalted as exc:
             raise DeviceAbort(f"the client stopped sending after repeated communication errors "
                               f"(the vendor's host duty): {exc}") from exc
@@ -145,6 +143,18 @@ class DeviceUnderTest:
             self.settle()  # is anyone there? StoppedAnswering if not, so no check talks on into silence
         return p
 
+    @property
+    def homed(self) -> bool | None:
+        """Is the axis homed, as the engine knows it from the answers (None: not known)?"""
+        homed: bool | None = self.client.conversation.knowledge.homed.value
+        return homed
+
+    @property
+    def position(self) -> int | None:
+        """The axis position as the engine knows it from the answers (None: not known)."""
+        position: int | None = self.client.conversation.knowledge.position.value
+        return position
+
     def send(self, frame: Frame, *, timeout: float | None = None) -> Probe:
         return self.probe(frame.to_bytes(), timeout=timeout)
 
@@ -155,7 +165,6 @@ class DeviceUnderTest:
             self.latched = p.alarm.code != spec.ALARM_NONE
         elif p.frame is not None:  # any other answer: nothing is latched now
             self.latched = False
-        self.budget.observe(command, p.frame, not p.errors)
         if isinstance(p.frame, ReadVersionAnswer) and not p.errors:
             self.version = self.version or p.frame.version
         if p.normal and isinstance(p.frame, (ReadOutputsAnswer, WriteOutputsAnswer)):
@@ -175,9 +184,9 @@ class DeviceUnderTest:
         if not isinstance(command, (MovePoint, MoveDirect)):
             raise MotionRefused(f"a malformed move command ({show_bytes(raw)}) is only sent to the simulator")
         homing = isinstance(command, MovePoint) and command.n == 0
-        if self.budget.homed is None and not self.latched:
+        if self.homed is None and not self.latched:
             self.current_position()  # learn whether the move would home first
-        if (homing or self.budget.homed is not True) and not s.may_home:
+        if (homing or self.homed is not True) and not s.may_home:
             raise MotionRefused(f"{'homing' if homing else 'the axis may not be homed and would home'}"
                                 f" first: the origin is outside the safe range {s.describe_range()}")
         if homing:
@@ -185,7 +194,7 @@ class DeviceUnderTest:
         if isinstance(command, MoveDirect):
             target = command.pos
         else:
-            point = self.budget.points.get(command.n)
+            point = self.client.conversation.knowledge.point(command.n).value
             if point is None:
                 raise MotionRefused(f"point {command.n:X}'s position is not known: read it first")
             target = point.pos
@@ -267,9 +276,9 @@ class DeviceUnderTest:
 
     def home_if_needed(self) -> None:
         """Make sure the axis is homed (homing only when allowed); MotionRefused otherwise."""
-        if self.budget.homed is None:
+        if self.homed is None:
             self.current_position()
-        if self.budget.homed is not True:
+        if self.homed is not True:
             p = self.send(MovePoint(n=0))
             if p.frame is None or p.alarm is not None:  # a flawed but real answer is for the checks
                 raise DeviceAbort(f"homing failed: {describe_answer(p)} ({p.show()})")
