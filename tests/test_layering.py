@@ -308,10 +308,12 @@ LAYERS = {
     "xac1_proto.pages": 1, "xac1_proto.sim": 1,  # report pages; the simulator (its model and shells)
     "xac1_proto.urlhandler": 2,  # xac1sim://, around the simulator's model
     "xac1_proto.client": 3,  # the host client, which opens URLs and so registers xac1sim://
+    "xac1_proto.history": 2,  # the acceptance history (its store, views and trend page)
     "xac1_proto.console": 4, "xac1_proto.dut": 4,  # the console; the device under test (through a client)
-    "xac1_proto.cli": 5, "xac1_proto.entry": 6,  # the xac1 commands; the console script
-    "xac1_proto.__main__": 7,  # python -m xac1_proto
-    "sniffer": 7, "conformance": 7,  # side by side above the core, each its own
+    "xac1_proto.fuzz": 5,  # xac1 fuzz's core: its views share the evidence's escapes
+    "xac1_proto.cli": 6, "xac1_proto.entry": 7,  # the xac1 commands; the console script
+    "xac1_proto.__main__": 8,  # python -m xac1_proto
+    "sniffer": 8, "conformance": 8,  # side by side above the core, each its own
 }
 FACADE = "xac1_proto"  # the package's lazy public face: it names its modules as strings (and imports them
 # for type checkers only), so it sits on top of them all and is left out of the arrows
