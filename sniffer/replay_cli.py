@@ -78,9 +78,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "--timeout (default 1; the new conversation with xac1sim://: 0.2)")
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text output (default: when the output is a terminal)")
-    from .replay_history import add_arguments as history_arguments
+    from xac1_proto.history.command import add_arguments as history_arguments
 
-    history_arguments(p)
+    history_arguments(p, "the replay")
 
 
 def _error(message: str, status: int = EXIT_USAGE) -> int:

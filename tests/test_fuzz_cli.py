@@ -13,6 +13,7 @@ import pytest
 from conftest import ROOT, wait_until, xac1, xac1_sim
 
 from xac1_proto.cli import main
+from xac1_proto.history.store import Store
 
 # The in-process simulator answers at once; a tenth of a second leaves room for a loaded machine.
 FAST = ("--timeout", "0.1", "--seed", "3")
@@ -121,10 +122,12 @@ def test_each_robustness_fault_is_found_shrunk_and_replayed(tmp_path, deviation)
 @pytest.mark.slow
 def test_sigint_ends_the_run_in_order(tmp_path):
     """SIGINT during the run ends it in order: the unit is restored, the summary says so and names the
-    signal, and the exit status is that of the findings (0: none)."""
+    signal, and the exit status is that of the findings (0: none); the history records the run as
+    INTERRUPTED by SIGINT with that exit status."""
+    store = tmp_path / "history.sqlite"
     proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "fuzz", "--seconds", "60", *FAST,
-                             "--format", "jsonl"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                             "--format", "jsonl", "--history", str(store)], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert proc.stdout is not None
     try:
         wait_until(lambda: proc.stdout.readline().startswith('{"type": "case"'), 20, "a first case")
@@ -137,6 +140,10 @@ def test_sigint_ends_the_run_in_order(tmp_path):
     summary = _jsonl(out)[-1]
     assert summary["type"] == "summary" and summary["interrupted"] == "SIGINT" and summary["restored"]
     assert "restore: 15 of 15 points unchanged" in err or "restored to" in err
+    with Store.open(str(store)) as history:
+        (recorded,) = (s.run for s in history.runs())
+    assert (recorded.kind, recorded.verdict, recorded.exit_status, recorded.interrupted) == (
+        "fuzz", "INTERRUPTED", 0, "SIGINT")
 
 
 @pytest.mark.slow

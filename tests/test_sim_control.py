@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from xac1_proto.sim import control
-from xac1_proto.sim.config import SimConfig
+from xac1_proto.sim.config import DEVIATIONS, ROBUSTNESS, ROBUSTNESS_MARK, SimConfig
 from xac1_proto.sim.model import DeviceModel
 
 
@@ -53,3 +53,17 @@ def test_a_bad_line_is_refused_naming_what_was_wrong(line, message):
         control.apply(model, line, 0.0)
     assert str(caught.value).startswith(message)
     assert _answer(model, b"0RV\r\n", 1.0) == b"0RV100\r\n"
+
+
+def test_deviation_lists_the_robustness_faults_marked_and_stars_those_on():
+    """``deviation`` alone lists every deviation, then every robustness fault (``config.ROBUSTNESS``)
+    marked as one the conformance suite does not check; those switched on are starred, a robustness
+    fault switched on through the channel too."""
+    model = DeviceModel(SimConfig(time_scale=0, deviations=frozenset({"letter-o"})))
+    control.apply(model, "deviation hang-on-long-line on", 0.0)
+    rows = control.apply(model, "deviation", 0.0)[0].splitlines()
+    assert [row[2:].split()[0] for row in rows] == [*DEVIATIONS, *ROBUSTNESS]
+    assert {row[2:].split()[0] for row in rows if row.startswith("*")} == {"letter-o", "hang-on-long-line"}
+    marked = {row[2:].split()[0] for row in rows if row.endswith(f"[{ROBUSTNESS_MARK}]")}
+    assert marked == set(ROBUSTNESS)
+    assert "conformance suite does not check" in ROBUSTNESS_MARK

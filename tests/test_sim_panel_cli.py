@@ -20,7 +20,7 @@ import serial
 from conftest import xac1, xac1_sim
 
 from xac1_proto import frames as fr
-from xac1_proto.sim.config import DEVIATIONS
+from xac1_proto.sim.config import DEVIATIONS, ROBUSTNESS, ROBUSTNESS_MARK
 
 TIMEOUT = 5.0
 MS = 5000  # Playwright's waits, in milliseconds
@@ -117,10 +117,13 @@ def test_a_panel_address_that_cannot_be_served_is_one_line_and_exit_2() -> None:
 @pytest.mark.slow
 def test_deviation_list_needs_no_transport() -> None:
     """Issue 40 item 10: ``xac1 sim --deviation list`` lists every deviation, as --help says, with no
-    --pty or --tcp; without the list, a transport is still required (exit 2, one line)."""
+    --pty or --tcp, then every robustness fault, marked as one the conformance suite does not check;
+    without the list, a transport is still required (exit 2, one line)."""
     r = xac1("sim", "--deviation", "list", timeout=30)
     assert r.returncode == 0, r.stderr
-    assert [line.split()[0] for line in r.stdout.splitlines()] == list(DEVIATIONS)
+    lines = r.stdout.splitlines()
+    assert [line.split()[0] for line in lines] == [*DEVIATIONS, *ROBUSTNESS]
+    assert [line.split()[0] for line in lines if line.endswith(f"[{ROBUSTNESS_MARK}]")] == list(ROBUSTNESS)
     r = xac1("sim", "--time-scale", "0", timeout=30)
     assert r.returncode == 2
     assert r.stderr.strip() == "xac1 sim: error: one of the arguments --pty --tcp is required"

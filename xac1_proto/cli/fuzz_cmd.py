@@ -4,7 +4,8 @@ A thin shell: the options are checked before anything is sent; the unit's points
 are read first (``xac1_proto.dut.safety``) and put back at the end however the run ends (SIGINT, SIGTERM
 and SIGHUP end the run in order: ``xac1_proto.signals``); the cases, the probes and the shrinking are
 ``fuzz_run.FuzzRun`` over ``fuzz_unit.Unit``, the judging is the sans-IO core ``xac1_proto.fuzz``; what
-is written is ``fuzz_files``. A live progress bar on a terminal (stderr), the results on stdout.
+is written is ``fuzz_files``; the run's history record is ``fuzz_history``. A live progress bar on a
+terminal (stderr), the results on stdout.
 
 Exit status: 0 no finding; 1 findings; 2 bad options, or a signal before the first case; 3 the unit could
 not be reached or never answered at the start.
@@ -21,6 +22,8 @@ import time
 from typing import TYPE_CHECKING, Any, Final, TextIO
 
 if TYPE_CHECKING:
+    import datetime as _dt
+
     from xac1_proto.chunk import Chunk
     from xac1_proto.dut.settings import Settings
     from xac1_proto.fuzz.results import CaseResult, Reported, RunSummary
@@ -85,6 +88,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also write JUnit XML (one test case a kind of finding)")
     p.add_argument("--restore-mode0", action="store_true",
                    help="send 0CM0 as the very last command (external start inputs enabled again)")
+    from xac1_proto.history.command import add_arguments as history_arguments
+
+    history_arguments(p, "the fuzz run")
 
 
 def _error(message: str, status: int = EXIT_USAGE) -> int:
@@ -147,12 +153,14 @@ def _fuzz(args: argparse.Namespace, settings: Settings, seed: int) -> int:
     from xac1_proto.dut.device import DeviceAbort
     from xac1_proto.dut.safety import restore, take_snapshot
     from xac1_proto.fuzz.judge import Transcript
+    from xac1_proto.history.model import now
     from xac1_proto.signals import EXIT_EARLY, Interrupted, OrderlyEnd
 
     from .fuzz_run import FuzzRun, Limits
     from .fuzz_unit import Unit, ask_on_terminal
 
     out = _Output(args, sys.stdout)
+    began = now()  # for the history
     with OrderlyEnd(PROGRAM, "stopping the fuzz run: the unit is restored, then the summary follows") as end:
         try:
             transcript = Transcript(settings.timeout)
@@ -192,11 +200,13 @@ def _fuzz(args: argparse.Namespace, settings: Settings, seed: int) -> int:
         restored = restore(unit.dut, snap)
         unit.close()
         seconds = time.monotonic() - started
-    return _conclude(args, settings, seed, fuzz, restored, end.signal_name, failure, seconds, out)
+    return _conclude(args, settings, seed, fuzz, restored, end.signal_name, failure, (began, seconds), out)
 
 
 def _conclude(args: argparse.Namespace, settings: Settings, seed: int, fuzz: Any, restored: Any,
-              signal: str | None, failure: str | None, seconds: float, out: _Output) -> int:
+              signal: str | None, failure: str | None, when: tuple[_dt.datetime, float], out: _Output) -> int:
+    """Print the summary and the restore, write the report and JUnit, record the run in the history;
+    the exit status."""
     from xac1_proto.fuzz.judge import answers_in
     from xac1_proto.fuzz.results import RunSummary
 
@@ -208,6 +218,7 @@ def _conclude(args: argparse.Namespace, settings: Settings, seed: int, fuzz: Any
     lines = restored.lines + restored.warnings + restored.problems
     if restored.unverified:  # what the restore's own log cannot know: what the cases may have written
         lines += [restored.unverified[0], *_changes_by_cases(fuzz)]
+    began, seconds = when
     summary = RunSummary.of(fuzz.results, fuzz.findings, port=settings.port, seed=seed, seconds=seconds,
                             version=version, motion=args.allow_motion, interrupted=signal,
                             stopped=fuzz.stopped or failure, restore=tuple(lines), restored=restored.ok,
@@ -229,6 +240,9 @@ def _conclude(args: argparse.Namespace, settings: Settings, seed: int, fuzz: Any
                 print(f"{PROGRAM}: cannot write {option} {path}: {exc.strerror or exc}", file=sys.stderr)
             else:
                 print(f"{PROGRAM}: {option[2:]} written to {path}", file=sys.stderr)
+    from .fuzz_history import record_fuzz
+
+    record_fuzz(summary, args, settings, fuzz.limits, began, PROGRAM)
     return status
 
 
@@ -307,13 +321,10 @@ class _Output:
         if self.jsonl:
             self.write(s.as_dict())
             return
-        kinds = ", ".join(f"{k} {n}" for k, n in s.by_kind.items() if n)
-        verdict = f"{len(s.findings)} finding(s) ({kinds})" if s.findings else \
-            "no finding: the unit stood up to every case"
-        ended = f"; stopped by {s.interrupted}" if s.interrupted else ""
-        early = f"; ended early: {s.stopped}" if s.stopped else ""
+        from xac1_proto.fuzz.results import outcome
+
         self.stream.write(f"{PROGRAM}: {s.cases} cases against {s.port} (seed {s.seed}, {s.seconds:.1f} s): "
-                          f"{verdict}{ended}{early}\n")
+                          f"{outcome(s)}\n")
         self.stream.flush()
 
 

@@ -16,7 +16,7 @@ from typing import Any
 from ..dut.evidence import wire
 from .judge import KINDS, Finding
 
-__all__ = ["CaseResult", "Reported", "RunSummary", "wire"]
+__all__ = ["CaseResult", "Reported", "RunSummary", "outcome", "wire"]
 
 
 @dataclass(frozen=True)
@@ -92,3 +92,13 @@ class RunSummary:
                 "seconds": round(self.seconds, 3), "version": self.version, "motion": self.motion,
                 "generators": self.generators, "interrupted": self.interrupted, "stopped": self.stopped,
                 "restored": self.restored, "restore": list(self.restore), "exit": self.exit}
+
+
+def outcome(s: RunSummary) -> str:
+    """What the run found and how it ended, in words (the summary line and the history say it)."""
+    kinds = ", ".join(f"{k} {n}" for k, n in s.by_kind.items() if n)
+    found = f"{len(s.findings)} finding(s) ({kinds})" if s.findings else \
+        "no finding: the unit stood up to every case"
+    ended = f"; stopped by {s.interrupted}" if s.interrupted else ""
+    early = f"; ended early: {s.stopped}" if s.stopped else ""
+    return found + ended + early

@@ -3,12 +3,13 @@ for a plant), read back with ``xac1 history``.
 
 How this works: a command that judges a device builds a ``RunRecord`` (``model.py``; ``kind``
 conformance, replay or fuzz) when it ends and calls ``record(run, url)`` (``recorder.py``), with the URL
-from ``where.target`` (``--history``, ``XAC1_HISTORY``, the XDG default; None for ``--no-history``).
+from ``where.target`` (``--history``, ``XAC1_HISTORY``, the XDG default; None for ``--no-history``);
+``command.py`` holds the options and the recording every such command shares (replay, fuzz).
 ``store.py`` opens the store through SQLAlchemy Core (``schema.py``), migrating an older one with the
 Alembic revisions shipped in ``migrations/``; a store it cannot reach, or of a newer schema, leaves the
 run in the local spool (``spool.py``) for ``xac1 history sync``. ``cli.py`` is ``xac1 history``,
-``views.py`` its tables and ``trend.py`` its HTML page. Only ``where`` and ``model`` load without
-SQLAlchemy.
+``views.py`` its tables and ``trend.py`` its HTML page. Only ``where``, ``command`` and ``model`` load
+without SQLAlchemy.
 """
 
 from __future__ import annotations

@@ -54,8 +54,8 @@ FLAGS: Final[dict[str, tuple[str, dict[str, Any]]]] = {
     "--drop": ("drop", {"metavar": "P", "help": "drop each answer byte with probability P"}),
     "--delay": ("delay", {"metavar": "MS", "help": "delay every answer by MS milliseconds (at most 60000)"}),
     "--deviation": ("deviation", {"action": "append", "metavar": "NAME",
-                                  "help": "break one stated rule on purpose (repeatable; "
-                                          "--deviation list shows them)"}),
+                                  "help": "break one stated rule on purpose, or switch on a robustness "
+                                          "fault (repeatable; --deviation list shows them)"}),
 }
 
 
@@ -143,10 +143,10 @@ def run(args: argparse.Namespace) -> int:
     from ..signals import EXIT_EARLY, Interrupted, OrderlyEnd
 
     if args.opt_deviation == ["list"]:  # a list needs no transport, nor anything else
-        from .config import DEVIATIONS
+        from .config import deviation_listing
 
-        for name, (rule, section) in DEVIATIONS.items():
-            print(f"{name:28} {rule} [docs/protocol.md: {section}]")
+        for name, what in deviation_listing():
+            print(f"{name:28} {what}")
         return EXIT_OK
     problem = _usage_problem(args)
     if problem:

@@ -104,6 +104,15 @@ ROBUSTNESS: Final[dict[str, str]] = {
     "late-after-errors": "flood_errors (default 3) malformed lines in a row leave every answer 0.5 s late",
 }
 LATE_AFTER_ERRORS_S: Final = 0.5  # how late ``late-after-errors`` answers (not scaled by time_scale)
+ROBUSTNESS_MARK: Final = "robustness fault: the conformance suite does not check it; xac1 fuzz finds it"
+
+
+def deviation_listing() -> list[tuple[str, str]]:
+    """Every name ``deviation`` takes with what it does: each deviation with the docs/protocol.md section
+    of the rule it breaks, then each robustness fault marked as one (``xac1 sim --deviation list`` and
+    the control channel's ``deviation`` show this)."""
+    stated = [(name, f"{rule} [docs/protocol.md: {section}]") for name, (rule, section) in DEVIATIONS.items()]
+    return stated + [(name, f"{what} [{ROBUSTNESS_MARK}]") for name, what in ROBUSTNESS.items()]
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
 from .. import spec
-from .config import DEVIATIONS, MAX_WAIT_MS, parse_ms, parse_probability
+from .config import MAX_WAIT_MS, deviation_listing, parse_ms, parse_probability
 from .model import MEMORY_FAULTS, MOVE_FAULTS, DeviceModel, Output
 
 if TYPE_CHECKING:
@@ -126,8 +126,8 @@ def _slow(model: DeviceModel, args: list[str], t: float) -> Result:
 def _deviation(model: DeviceModel, args: list[str], t: float) -> Result:
     if not args:
         enabled = set(model.config.deviations)
-        return "\n".join(f"{'*' if n in enabled else ' '} {n:28} {rule}"
-                         for n, (rule, _) in DEVIATIONS.items()), []
+        rows = deviation_listing()
+        return "\n".join(f"{'*' if n in enabled else ' '} {n:28} {what}" for n, what in rows), []
     on = _on_off(args[1]) if len(args) == 2 else True
     model.set_deviation(args[0], on)
     return f"deviation {args[0]} {'on' if on else 'off'}", []
@@ -158,7 +158,8 @@ CONTROLS: Final[dict[str, Control]] = {
                      "probability P, default 1)", (1, 2), _delay),
     "seed": Control("seed N", "reseed the line faults", (1,), _seed),
     "slow": Control("slow MS", f"extra turnaround before every answer (0..{MAX_WAIT_MS:g} ms)", (1,), _slow),
-    "deviation": Control("deviation [NAME [on|off]]", "list deviations, or switch one on (off)", (0, 1, 2),
+    "deviation": Control("deviation [NAME [on|off]]", "list deviations and robustness faults (* on), or "
+                         "switch one on (off)", (0, 1, 2),
                          _deviation),
     "replay": Control("replay", "where in the capture the replay stands (xac1 sim --replay)", (0,), _replay),
     "help": Control("help", "this text", (0,), lambda m, a, t: (help_text(), [])),
