@@ -91,7 +91,7 @@ def _reference_to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: 
     if v.kind == "no-answer":
         assert v.reply_to is not None
         return TimeoutRecord(command=v.reply_to, t=v.t, header=v.header, waited_s=v.waited_s,
-                             details=details, sides=v.sides)
+                             details=details, sides=v.sides, severities=v.severities)
     assert v.i is not None
     if v.kind == "cut":  # issue 23 item 7: the data ended inside a frame, no violation
         return JunkRecord(i=v.i, t=v.t, dir=v.sender, raw=v.raw, reason=records_mod.CAPTURE_ENDED,
@@ -99,11 +99,11 @@ def _reference_to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: 
     if v.kind in ("host-junk", "device-junk"):
         return JunkRecord(i=v.i, t=v.t, dir=v.sender, raw=v.raw, reason=reason or "flushed",
                           violations=v.codes, details=details, line_errors=line_errors, sides=v.sides,
-                          reply_to=v.reply_to, latency_s=v.latency_s)
+                          reply_to=v.reply_to, latency_s=v.latency_s, severities=v.severities)
     return FrameRecord(i=v.i, t=v.t, dir=v.sender, raw=v.raw, header=v.header, frame=v.frame,
                        violations=v.codes, details=details, reply_to=v.reply_to, latency_s=v.latency_s,
                        t_last=v.t_last, line_errors=line_errors, sides=v.sides,
-                       window_s=v.waited_s if v.kind == "host-frame" else None)
+                       window_s=v.waited_s if v.kind == "host-frame" else None, severities=v.severities)
 
 
 def _reference_line_errors(self: Analyzer, direction: str, offset: int, length: int) -> tuple[str, ...]:

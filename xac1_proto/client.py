@@ -167,7 +167,7 @@ class Client:
         decoded leniently with its violations. Raises only ``ResponseTimeout`` (no frame-shaped
         answer in time) and ``CommunicationHalted``; the answers still count for the storm guard."""
         command, violations = diagnose(raw, spec.COMMAND)
-        if any(v.code not in spec.NOTICES for v in violations):
+        if any(v.is_error for v in violations):
             command = None  # a malformed command is no move: it gets the plain timeout (e.g. 0MV vel 00)
         return self._exchange(bytes(raw), command, timeout)
 

@@ -722,14 +722,17 @@ class Conversation:
         good_reset = header == spec.RESET_HEADER and not error
         if k.storm_run >= self.storm_limit and (good_reset or self._reset_in_storm):
             which = "an alarm reset" if good_reset else "the first command after a successful alarm reset"
-            out.append(self._v("storm-recovery", f"{what}, {which}, sent after {k.storm_run} communication-error "
+            out.append(self._v("storm-recovery",
+                               f"{what}, {which}, sent after {k.storm_run} communication-error "
                           f"answers (0%%01) in a row: recovering, which the vendor text does not forbid"))
         elif k.storm_run >= self.storm_limit:
-            out.append(self._v("comm-error-storm", f"{what} sent after {k.storm_run} communication-error answers "
+            out.append(self._v("comm-error-storm",
+                               f"{what} sent after {k.storm_run} communication-error answers "
                           f"(0%%01) in a row; the host must stop after {self.storm_limit}"))
         self._reset_in_storm = False
         if self._unreset_alarm and not good_reset:
-            out.append(self._v("alarm-ignored", f"{what} sent after an alarm answer without an alarm reset (0%C)"))
+            out.append(self._v("alarm-ignored",
+                               f"{what} sent after an alarm answer without an alarm reset (0%C)"))
         if good_reset:
             self._unreset_alarm = False
         return out
@@ -760,7 +763,8 @@ class Conversation:
                 self._outcome_unknown(line)
             return
         if line.kind == _ERROR:
-            found.append(self._v("error-accepted", f"{header} answer to {line.name()}, which breaks the frame "
+            found.append(self._v("error-accepted",
+                                 f"{header} answer to {line.name()}, which breaks the frame "
                             f"table: an error is answered with an alarm answer (0%%Ec)"))
             self._outcome_unknown(line)
             return
@@ -793,12 +797,14 @@ class Conversation:
                             f"{code:02X}: 0%C clears every alarm but emergency stop (0E) and answers 0%C00"))
         elif code == k.stop_cleared.value and code != spec.ALARM_ESTOP and line is not None \
                 and line.kind == _COMMAND and line.plain and line.header in _RAISES_NO_ALARM:
-            found.append(self._v("stop-alarm-back", f"alarm {code:02X} answers {line.name()} after the emergency "
+            found.append(self._v("stop-alarm-back",
+                                 f"alarm {code:02X} answers {line.name()} after the emergency "
                             f"stop, but the alarm reset during the stop cleared it: 0%C clears every alarm "
                             f"but emergency stop (0E)"))
         elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged \
                 and not released:
-            found.append(self._v("latch-code-changed", f"alarm {latched:02X} is latched, but the answer is alarm "
+            found.append(self._v("latch-code-changed",
+                                 f"alarm {latched:02X} is latched, but the answer is alarm "
                             f"{code:02X}: a latched alarm is repeated until a reset"))
         if code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
             self._stop_over(k.latched)
@@ -831,7 +837,8 @@ class Conversation:
         k.mode = Fact(1, KNOWN)  # silent item 11: communicating gives mode 1
         self._reset_in_storm = k.storm_run >= self.storm_limit
         if k.stop_pressed.value is True and k.stop_pressed.status == KNOWN:
-            found.append(self._v("estop-cleared", "the alarm reset answered 0%C00 while the emergency stop input "
+            found.append(self._v("estop-cleared",
+                                 "the alarm reset answered 0%C00 while the emergency stop input "
                             "is pressed: emergency stop (0E) stays latched until the input is released"))
             return  # the device is wrong; the stop is still on
         if k.latched.value == spec.ALARM_ESTOP:
@@ -847,7 +854,8 @@ class Conversation:
         if latched == spec.ALARM_ESTOP and not self._stop_known_pressed():
             under = k.under_stop.value
             if under is not None and k.under_stop.judged:
-                found.append(self._v("stop-alarm-back", f"{line.header} got a normal answer after the emergency "
+                found.append(self._v("stop-alarm-back",
+                                     f"{line.header} got a normal answer after the emergency "
                                 f"stop, but alarm {under:02X} was latched before it and no reset cleared it"))
             k.latched = Fact(None, KNOWN)  # the stop input was released (silent item 3)
             k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN
@@ -877,11 +885,13 @@ class Conversation:
                 mine, theirs = frame.fields(), cmd.fields()
                 diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
                                  for k, v in mine.items() if theirs.get(k) != v)
-                found.append(self._v("echo-mismatch", f"{header} echo differs from the command {line.name()}: "
+                found.append(self._v("echo-mismatch",
+                                     f"{header} echo differs from the command {line.name()}: "
                                 f"{diff}"))
                 return False
         elif header in _BOTH_N and frame.n != cmd.n:  # type: ignore[attr-defined]
-            found.append(self._v("answer-mismatch", f"{header} answer for N={frame.n:X} to the command "  # type: ignore[attr-defined]
+            found.append(self._v("answer-mismatch",
+                                 f"{header} answer for N={frame.n:X} to the command "  # type: ignore[attr-defined]
                             f"{line.name()} for N={cmd.n:X}", _CODES))  # type: ignore[attr-defined]
             return False
         return True
@@ -983,7 +993,8 @@ class Conversation:
             return
         if k.homed.value is False and k.homed.status == KNOWN and k.mode == _MODE_1 and not unknown:
             self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", k.homed,
-                           "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)", "readback-unhomed")
+                           "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)",
+                           "readback-unhomed")
             return
         if unknown:  # the device states it is not homed: learnt, never judged (an unseen power cycle...)
             k.homed, k.position = Fact(False, LEARNT), _NOT_KNOWN

@@ -73,17 +73,19 @@ def _info(where: str, words: str) -> Basis:
     return Basis("information", where, words)
 
 
-_ANSWER_DEF: Final = "「アンサー: コマンドを受けたコントローラが上位機器に送るデータ」 (an answer is what the controller " \
-    "sends on receiving a command)"
-_ERROR_CODE: Final = "「通信からの命令でエラーが発生したときはエラーコードで応答します」 (an error in a command from " \
-    "the line is answered with an error code)"
-_LATCH: Final = "「アラームリセット命令があるまでアラームを保持し、他のコマンドに対してもアラームアンサーを返信します」 " \
-    "(the alarm is held until an alarm reset and other commands get the alarm answer too)"
+_ANSWER_DEF: Final = ("「アンサー: コマンドを受けたコントローラが上位機器に送るデータ」 "
+                       "(an answer is what the controller sends on receiving a command)")
+_ERROR_CODE: Final = ("「通信からの命令でエラーが発生したときはエラーコードで応答します」 "
+                       "(an error in a command from the line is answered with an error code)")
+_LATCH: Final = ("「アラームリセット命令があるまでアラームを保持し、"
+                  "他のコマンドに対してもアラームアンサーを返信します」 "
+                  "(the alarm is held until an alarm reset and other commands get the alarm answer too)")
 _RESET_WORDS: Final = "「非常停止以外のアラームのリセットを行います」 (resets every alarm but emergency stop)"
-_CAUTION: Final = "「正しいコマンドを送っているにもかかわらず、アラームが返信される場合は、上位機器、ケーブル、…のいずれかに" \
-    "異常がある可能性があります」 (an alarm to a correct command may be the host's or the cable's fault)"
-_MOTION: Final = "「0MVコマンド受信後はアンサーを送信するまで通信できません」 (after 0MV no communication until " \
-    "its answer)"
+_CAUTION: Final = ("「正しいコマンドを送っているにもかかわらず、アラームが返信される場合は、"
+                   "上位機器、ケーブル、…のいずれかに異常がある可能性があります」 "
+                   "(an alarm to a correct command may be the host's or the cable's fault)")
+_MOTION: Final = ("「0MVコマンド受信後はアンサーを送信するまで通信できません」 "
+                  "(after 0MV no communication until its answer)")
 
 # The rulebook, one row a rule; a code's first row is its plain rule. Order: the report order of the codes.
 RULE_ROWS: Final[tuple[Rule, ...]] = (
@@ -117,7 +119,8 @@ RULE_ROWS: Final[tuple[Rule, ...]] = (
                  "command is returned; 0WP: the write's result)")),
     Rule("answer-mismatch", "answer-mismatch", "the answer is the command's, for its N",
          _stated("§2", _ANSWER_DEF)),
-    Rule("unsolicited-answer", "unsolicited-answer", "an answer answers a command", _stated("§2", _ANSWER_DEF)),
+    Rule("unsolicited-answer", "unsolicited-answer", "an answer answers a command",
+         _stated("§2", _ANSWER_DEF)),
     Rule("no-answer", "no-answer", "a command gets its answer (within the window of silent item 17)",
          _stated("§2", _ANSWER_DEF)),
     Rule("no-answer-error", "no-answer", "a command with an error gets an alarm answer",
@@ -135,8 +138,9 @@ RULE_ROWS: Final[tuple[Rule, ...]] = (
     Rule("alarm-ignored", "alarm-ignored", "the host resets an alarm before going on",
          _reading("\"Behaviour\": latch", f"§6 {_LATCH}: the device's duty; no host duty is stated")),
     Rule("comm-error-storm", "comm-error-storm", "the host stops after a run of communication errors",
-         _stated("§6 caution", "「通信エラーが連続して（例えば5回以上）返信された時は、動作を停止するような機構を"
-                 "設け」 (after communication errors in a row, e.g. 5 or more, stop)")),
+         _stated("§6 caution", "「通信エラーが連続して（例えば5回以上）返信された時は、"
+                 "動作を停止するような機構を設け」 (after communication errors in a row, e.g. 5 or more, "
+                 "stop)")),
     Rule("storm-recovery", "storm-recovery", "recovering from a storm with an alarm reset",
          _reading("\"Behaviour\": host duty", "§6's caution asks to stop and check the equipment; a reset "
                   "after it is not forbidden")),
@@ -156,14 +160,14 @@ RULE_ROWS: Final[tuple[Rule, ...]] = (
     Rule("estop-cleared", "estop-cleared", "an alarm reset does not clear emergency stop",
          _stated("§6", _RESET_WORDS)),
     Rule("readback-mismatch", "readback-mismatch", "a point reads back as written, stored or read",
-         _stated("§7 (1), (2), (4)", "「位置番号Nの移動データを返信します」「移動データを設定します」 (0RP returns "
-                 "point N's data; 0WP sets it)")),
+         _stated("§7 (1), (2), (4)", "「位置番号Nの移動データを返信します」「移動データを設定します」 "
+                 "(0RP returns point N's data; 0WP sets it)")),
     Rule("readback-outputs", "readback-mismatch", "the OUT ports read back as written or read",
          _stated("§7 (7), (8)", "「現在の出力ポートの状態を返信します」 (0RS returns the OUT ports' state; "
                  "0WS sets it)")),
     Rule("readback-position", "readback-mismatch", "the position reads back where a move went",
-         _stated("§7 (3), (5), (6)", "「現在位置を返信します」「位置番号Nに移動します」 (0RC returns the current "
-                 "position; 0MP and 0MV move there)")),
+         _stated("§7 (3), (5), (6)", "「現在位置を返信します」「位置番号Nに移動します」 "
+                 "(0RC returns the current position; 0MP and 0MV move there)")),
     Rule("readback-unhomed", "readback-mismatch", "0RC before homing answers N, V, A 0 and Pos FFFFFF",
          _stated("§7 (3)", "「原点復帰および移動していない場合、N, V, Aには0、POSにはFFFFFFが入ります」 (not "
                  "homed: N, V, A 0 and Pos FFFFFF)")),
