@@ -17,7 +17,7 @@ import shlex
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 from .results import ERROR, FAIL, MANUAL, PASS, SKIP, Result, result_from
 
@@ -85,6 +85,7 @@ class Report:
     not_run_topics: list[str] = field(default_factory=list)  # the group of each stated-rule check not run
     latencies: dict[str, list[float]] = field(default_factory=dict)  # command header -> turnarounds (s)
     timeout: float | None = None  # the run's answer timeout (s): the deadline drawn on the histogram
+    readings: str = "notice"  # the severity of our readings (--readings): only errors fail a device
     restore_failed: list[str] = field(default_factory=list)  # what the restore wrote back but reads wrong
     restore_unverified: list[str] = field(default_factory=list)  # what the run changed, not restored
 
@@ -194,7 +195,7 @@ class Report:
             what = ", ".join(self.restore_unverified)
             line += (f"; THE DEVICE COULD NOT BE RESTORED (not verified: {what}; see the safety section)"
                      if what else "; THE DEVICE COULD NOT BE RESTORED (see the safety section)")
-        return line
+        return f"{line}; readings: {self.readings}"
 
     def exit_status(self, allow_incomplete: bool = False) -> int:
         head = self.head
@@ -244,6 +245,11 @@ class Report:
         return list(reasons.items())
 
 
+# how the report's options name the --readings setting (docs/protocol.md "Violation codes")
+_READINGS_TEXT: Final = {"notice": "notice (our readings of the silent vendor text never fail a device)",
+                         "error": "error (our readings of the silent vendor text fail a device too)"}
+
+
 def build(run: Any) -> Report:
     """Gather a finished (or interrupted) run into a ``Report``."""
     from xac1_proto import __version__
@@ -256,6 +262,7 @@ def build(run: Any) -> Report:
         ("fresh device", "yes (power-on checks run first)" if s.fresh else "no (power-on checks skipped)"),
         ("random sequences", f"{s.examples} (seed {s.seed if s.seed is not None else 'derandomized'})"),
         ("answer timeout", f"{s.timeout:g} s"),
+        ("readings", _READINGS_TEXT[s.readings]),
         ("points the suite may write", _scratch_text(run)),
         ("kit", f"xac1-proto {__version__}"),
     ]
@@ -287,7 +294,7 @@ def build(run: Any) -> Report:
         not_run_topics=[_topic(nodeid) for nodeid, _name, info in run.collected
                         if nodeid not in judged and not info],
         latencies={h: list(v) for h, v in dut.latencies.items() if v} if dut is not None else {},
-        timeout=s.timeout,
+        timeout=s.timeout, readings=s.readings,
         restore_failed=list(rr.failed_items) if rr is not None else [],
         restore_unverified=list(rr.unverified_items) if rr is not None else [])
 

@@ -245,3 +245,48 @@ def test_readings_set_every_severity(pairs):
                 assert rules.RULES[x.rule].code == x.code
                 if readings == "error" and not x.is_error:
                     assert rules.RULES[x.rule].basis.kind == "information"
+
+
+def test_conformance_verdict_junit_and_html_say_the_readings():
+    """The conformance verdict line, the JUnit properties and the HTML report say which ``--readings``
+    setting judged the device."""
+    import xml.etree.ElementTree as ET
+
+    from conformance.junit import junit_tree
+    from conformance.report import Report, html_page
+
+    for readings in rules.READINGS:
+        rep = Report(port="socket://127.0.0.1:1", version="100", date="2026-01-01 00:00:00 UTC",
+                     options=[("port", "x")], checks=[], infos=[], info_errors=[], timing=[], safety=[],
+                     safety_problems=[], abort=None, command_line="xac1 conformance", readings=readings)
+        assert rep.verdict_line.endswith(f"; readings: {readings}")
+        props = {p.get("name"): p.get("value") for p in junit_tree(rep).getroot().iter("property")}
+        assert props["readings"] == readings
+        assert f"readings: {readings}" in html_page(rep)
+        assert ET.tostring(junit_tree(rep).getroot())  # still a well-formed tree
+
+
+@pytest.mark.slow  # two processes
+def test_decode_readings_option_sets_the_severities():
+    """``xac1 decode --readings error`` makes our readings (alarm-ignored here) errors in JSON lines and a
+    ✗ in the text view; the default keeps them notices ("!")."""
+    import json
+
+    from conftest import xac1
+
+    def severities(*options: str) -> dict[str, set[str]]:
+        out = xac1("decode", "captures/socat-xv.log", "--format", "jsonl", *options)
+        assert out.returncode in (0, 1), out.stderr
+        seen: dict[str, set[str]] = {}
+        for line in out.stdout.splitlines()[:-1]:
+            r = json.loads(line)
+            for code, severity in zip(r["violations"], r["severities"], strict=True):
+                seen.setdefault(code, set()).add(severity)
+        return seen
+
+    assert severities()["alarm-ignored"] == {"notice"}
+    assert severities("--readings", "error")["alarm-ignored"] == {"error"}
+    text = xac1("decode", "captures/socat-xv.log", "--readings", "error", "--no-color").stdout
+    assert "host   ✗ alarm-ignored" in text
+    bad = xac1("decode", "captures/socat-xv.log", "--readings", "strict")
+    assert bad.returncode == 2 and "--readings" in bad.stderr

@@ -194,6 +194,11 @@ _SEVERITIES: Final[dict[Readings, dict[str, spec.Severity]]] = {
 }
 
 
+READINGS_HELP: Final = ("the severity of the rules that are our reading of a silent vendor text: notice "
+                        "(default) or error, for a QA lead who adopts them "
+                        "(docs/protocol.md \"Violation codes\")")
+
+
 def severity(rule: str, readings: Readings = DEFAULT_READINGS) -> spec.Severity:
     """The severity of ``rule`` under ``readings`` (module docstring)."""
     return _SEVERITIES[readings][rule]
