@@ -9,24 +9,11 @@ import re
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_conversation_unseen import talk  # command and answer pairs 0.1 s apart
 
 from xac1_proto import docgen, rules, spec
 from xac1_proto.codec import read_frame
 from xac1_proto.conversation import LEARNT, UNKNOWN, Conversation, Verdict
-
-
-def talk(*pairs: tuple[bytes, bytes | None], c: Conversation | None = None,
-         end: float | None = None) -> tuple[list[Verdict], Conversation]:
-    """Command and answer pairs 0.1 s apart, the answer 2 ms after its command (None: silence)."""
-    c = c or Conversation()
-    out: list[Verdict] = []
-    for k, (cmd, ans) in enumerate(pairs):
-        t = 0.1 * k
-        out += c.host_frame(cmd, t, t)
-        if ans is not None:
-            out += c.device_frame(ans, t + 0.002, t + 0.002)
-    out += c.close(end)
-    return out, c
 
 
 def codes(verdicts: list[Verdict]) -> list[str]:
