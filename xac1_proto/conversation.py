@@ -23,7 +23,10 @@ times, order cannot tell it from the first line left unanswered: the verdict say
 line itself is not owed an answer. A line sent during a move is ``command-during-motion`` and is
 discarded by the device (silent item 10).
 
-The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].side(sender)``):
+The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].side(sender)``). Each
+violation names its row of the rulebook (``rules.RULE_ROWS``: code, basis and so severity; a rule that is
+our reading is a notice unless ``readings="error"``); docs/protocol.md "Violation codes" is generated
+from those rows. Where each code is found:
 
 | code | on | rule (docs/protocol.md) |
 |---|---|---|
