@@ -277,3 +277,17 @@ def test_decode_readings_option_sets_the_severities():
     assert "host   ✗ alarm-ignored" in text
     bad = xac1("decode", "captures/socat-xv.log", "--readings", "strict")
     assert bad.returncode == 2 and "--readings" in bad.stderr
+
+
+def test_every_rule_row_is_applied():
+    """No row documents a rule the engine does not apply: every rule that is not a code's plain rule is
+    named where a violation is made (the decoder or the engine)."""
+    from pathlib import Path
+
+    import xac1_proto
+
+    root = Path(xac1_proto.__file__).parent
+    source = (root / "conversation.py").read_text(encoding="utf-8") + (root / "codec.py").read_text(
+        encoding="utf-8")
+    for r in rules.RULE_ROWS:
+        assert r.name == r.code or f'"{r.name}"' in source, r.name

@@ -128,9 +128,6 @@ RULE_ROWS: Final[tuple[Rule, ...]] = (
     Rule("no-answer-junk", "no-answer", "a host line that is no command gets an alarm answer",
          _reading("silent item 1", "§5 gives an error code to an error in a command; a line that is no "
                   "command is not stated")),
-    Rule("late-move-answer", "no-answer", "a move's answer within the window priced from the guessed "
-         "speed table", _reading("silent items 15, 17", "the speed table and the answer time are not in "
-                                 "the vendor text")),
     Rule("overlapping-command", "overlapping-command", "one command at a time: the next after the answer",
          _stated("§2, §7 (6)", f"{_ANSWER_DEF}; {_MOTION}")),
     Rule("command-during-motion", "command-during-motion", "no command while a move's answer is awaited",
