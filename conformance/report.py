@@ -188,6 +188,7 @@ class Report:
             line = f"{head}: {when} ({counts})"
         elif head == "COULD NOT GO ON":
             line += "; the run stopped early (see why above)"
+        line += f"; readings: {self.readings}"  # which --readings judged it (the restore's news stays last)
         if self.safety_problems:
             what = ", ".join(self.restore_failed) or self.safety_problems[0]
             line += f"; THE RESTORE FAILED ({what}; see the safety section)"
@@ -195,7 +196,7 @@ class Report:
             what = ", ".join(self.restore_unverified)
             line += (f"; THE DEVICE COULD NOT BE RESTORED (not verified: {what}; see the safety section)"
                      if what else "; THE DEVICE COULD NOT BE RESTORED (see the safety section)")
-        return f"{line}; readings: {self.readings}"
+        return line
 
     def exit_status(self, allow_incomplete: bool = False) -> int:
         head = self.head
