@@ -46,7 +46,7 @@ from sniffer.io import pcap as pcap_mod
 from sniffer.io import socat as socat_mod
 from sniffer.io.base import Report, shown
 from sniffer.io.registry import Capture
-from sniffer.records import FrameRecord, JunkRecord, Record, TimeoutRecord, sides_of
+from sniffer.records import FrameRecord, JunkRecord, Record, TimeoutRecord, severities_of, sides_of
 from sniffer.view import TextView
 from xac1_proto import codec as codec_mod
 from xac1_proto import conversation as conversation_mod
@@ -187,8 +187,8 @@ def _reference_line(record: Record) -> str:
 def _reference_violation_lines(record: Record) -> list[str]:
     out = []
     details = list(record.details)
-    for code, side in zip(record.violations, sides_of(record), strict=True):
-        severity, meaning = spec.VIOLATIONS[code]
+    for code, side, severity in zip(record.violations, sides_of(record), severities_of(record), strict=True):
+        meaning = spec.VIOLATIONS[code][1]  # the record's own severity (issue 35: a rule's, not the code's)
         colour = "yellow" if severity == spec.NOTICE else "red"
         suffix = f" ({code})"
         detail = "; ".join(d.removesuffix(suffix) for d in details if d.endswith(suffix))
