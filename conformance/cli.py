@@ -47,6 +47,7 @@ def pytest_args(args: argparse.Namespace) -> list[str]:
                         ("--xac1-seed", args.seed), ("--xac1-examples", args.examples),
                         ("--xac1-timeout", args.timeout), ("--xac1-scratch-points", args.scratch_points),
                         ("--xac1-history", args.history), ("--xac1-history-fleet", args.history_fleet),
+                        ("--xac1-readings", args.readings),
                         ("-k", args.select)):
         if value is not None:
             out += [flag, str(value)]
@@ -94,7 +95,7 @@ def _run(args: argparse.Namespace, policy: Any) -> int:
     try:
         settings = Settings.make(args.port, args.allow_motion, args.fresh, args.safe_range, args.seed,
                                  args.examples, args.timeout, args.scratch_points, args.restore_mode0,
-                                 cli=True)
+                                 cli=True, readings=args.readings)
     except SettingsError as exc:
         print(f"xac1 conformance: {str(exc).replace('--xac1-', '--')}", file=sys.stderr)
         return 2

@@ -29,7 +29,7 @@ def junit_tree(rep: Report) -> ET.ElementTree:
     for name, value in [("firmware", rep.version), ("port", rep.port),
                         ("seed", "derandomized" if rep.seed is None else str(rep.seed)),
                         ("kit version", f"xac1-proto {rep.kit_version}"), ("command line", rep.command_line),
-                        ("verdict", rep.verdict_line), *rep.unit]:
+                        ("verdict", rep.verdict_line), ("readings", rep.readings), *rep.unit]:
         ET.SubElement(props, "property", name=name, value=value)
     for info in rep.infos:
         ET.SubElement(props, "property", name=f"information: {info.topic}", value=info.observed)

@@ -51,7 +51,7 @@ class Model:
     def judge(self, p: Probe) -> list[str]:
         """The device-side violations of one probe (the engine's verdict), as sentences."""
         problems = [str(v) for v, side in zip(p.violations, p.exchange.sides, strict=True)
-                    if side == spec.DEVICE_SIDE and v.code not in spec.NOTICES]
+                    if side == spec.DEVICE_SIDE and v.is_error]
         if p.timed_out:
             problems.append(f"{spec.VIOLATION_TABLE['no-answer'].meaning}: silence after "
                             f"{p.command_header} (no-answer)")

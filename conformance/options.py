@@ -35,6 +35,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", metavar="N", type=int, help="seed of the random command sequences (default 0)")
     p.add_argument("--examples", metavar="N", type=int, help="random command sequences to try")
     p.add_argument("--timeout", metavar="S", type=float, help="seconds to wait for an answer")
+    p.add_argument("--readings", choices=("notice", "error"), default=None,
+                   help="our readings of the silent vendor text as notices (default) or as errors: only "
+                        "errors fail a device")
     p.add_argument("-k", metavar="EXPR", dest="select", help="run only the checks matching EXPR (pytest -k)")
     p.add_argument("-v", "--verbose", action="store_true", help="show pytest's own output and tracebacks")
     from xac1_proto.history.where import add_arguments as history_arguments

@@ -101,6 +101,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                 help="seed of the random command sequences (default 0: the same sequences every run)")
     g.addoption("--xac1-examples", metavar="N", type=int, default=None,
                 help="random command sequences to try (default 30 on the simulator, 10 on a device)")
+    g.addoption("--xac1-readings", choices=("notice", "error"), default=None,
+                help="our readings of the silent vendor text as notices (default) or as errors: only "
+                     "errors fail a device")
     g.addoption("--xac1-timeout", metavar="S", type=float, default=None,
                 help="seconds to wait for an answer (default 0.5; 0.2 on the built-in simulator)")
     g.addoption("--xac1-report", metavar="FILE", default=None,
@@ -258,7 +261,8 @@ def _settings(c: pytest.Config) -> Any:
                          c.getoption("xac1_safe_range"), seed=c.getoption("xac1_seed"),
                          examples=c.getoption("xac1_examples"), timeout=c.getoption("xac1_timeout"),
                          scratch_points=c.getoption("xac1_scratch_points"),
-                         restore_mode0=c.getoption("xac1_restore_mode0"), cli=c.getoption("xac1_cli"))
+                         restore_mode0=c.getoption("xac1_restore_mode0"), cli=c.getoption("xac1_cli"),
+                         readings=c.getoption("xac1_readings"))
 
 
 def bad_options(c: pytest.Config) -> str | None:

@@ -85,6 +85,7 @@ class Report:
     not_run_topics: list[str] = field(default_factory=list)  # the group of each stated-rule check not run
     latencies: dict[str, list[float]] = field(default_factory=dict)  # command header -> turnarounds (s)
     timeout: float | None = None  # the run's answer timeout (s): the deadline drawn on the histogram
+    readings: str = "notice"  # the severity of our readings (--readings): only errors fail a device
     restore_failed: list[str] = field(default_factory=list)  # what the restore wrote back but reads wrong
     restore_unverified: list[str] = field(default_factory=list)  # what the run changed, not restored
 
@@ -187,6 +188,7 @@ class Report:
             line = f"{head}: {when} ({counts})"
         elif head == "COULD NOT GO ON":
             line += "; the run stopped early (see why above)"
+        line += f"; readings: {self.readings}"  # which --readings judged it (the restore's news stays last)
         if self.safety_problems:
             what = ", ".join(self.restore_failed) or self.safety_problems[0]
             line += f"; THE RESTORE FAILED ({what}; see the safety section)"
@@ -244,6 +246,11 @@ class Report:
         return list(reasons.items())
 
 
+# how the report's options name the --readings setting (docs/protocol.md "Violation codes")
+_READINGS_TEXT: Final = {"notice": "notice (our readings of the silent vendor text never fail a device)",
+                         "error": "error (our readings of the silent vendor text fail a device too)"}
+
+
 def build(run: Any) -> Report:
     """Gather a finished (or interrupted) run into a ``Report``."""
     from xac1_proto import __version__
@@ -272,7 +279,8 @@ def build(run: Any) -> Report:
         command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seed=s.seed, kit_version=__version__, junit=list(run.results),
         not_run_topics=[_topic(nodeid) for nodeid, _name, info in unjudged if not info],
-        timeout=s.timeout, restore_failed=restore_failed, restore_unverified=restore_unverified,
+        timeout=s.timeout, readings=s.readings, restore_failed=restore_failed,
+        restore_unverified=restore_unverified,
         **_device_facts(run.dut))
 
 
@@ -294,6 +302,7 @@ def _options(run: Any, kit_version: str) -> list[tuple[str, str]]:
         ("fresh device", "yes (power-on checks run first)" if s.fresh else "no (power-on checks skipped)"),
         ("random sequences", f"{s.examples} (seed {s.seed if s.seed is not None else 'derandomized'})"),
         ("answer timeout", f"{s.timeout:g} s"),
+        ("readings", _READINGS_TEXT[s.readings]),
         ("points the suite may write", _scratch_text(run)),
         ("kit", f"xac1-proto {kit_version}"),
     ]

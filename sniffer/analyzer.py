@@ -25,7 +25,7 @@ from collections.abc import Iterator
 from itertools import islice
 from typing import Final
 
-from xac1_proto import FrameBytes, Framer, Junk, motion, spec
+from xac1_proto import FrameBytes, Framer, Junk, motion, rules, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
 from xac1_proto.conversation import Conversation, Verdict
 
@@ -42,9 +42,10 @@ class Analyzer:
 
     def __init__(self, no_answer_timeout: float = NO_ANSWER_TIMEOUT_S, storm_limit: int = spec.STORM_LIMIT,
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,
-                 device_idle_flush: float | None = DEVICE_IDLE_FLUSH_S) -> None:
+                 device_idle_flush: float | None = DEVICE_IDLE_FLUSH_S,
+                 readings: rules.Readings = rules.DEFAULT_READINGS) -> None:
         self.conversation = Conversation(no_answer_timeout=no_answer_timeout, storm_limit=storm_limit,
-                                         speeds=speeds)
+                                         speeds=speeds, readings=readings)
         self.device_idle_flush = device_idle_flush
         self.tally = Tally()
         self._framers: dict[str, Framer] = {HOST: Framer(), DEVICE: Framer()}
@@ -259,17 +260,17 @@ def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -
     """The record of one verdict (the docs/output.md schema)."""
     if v.violations:
         details = tuple(x.message for x in v.violations)
-        codes, sides = v.codes, v.sides
+        codes, sides, severities = v.codes, v.sides, v.severities
     else:  # the clean frame: the same empty tuples, without the generators
-        details = codes = sides = ()
+        details = codes = sides = severities = ()
     kind, sender, i, raw, header, frame, _violations, reply_to, latency_s, t, t_last, waited_s = v
     if kind == "host-frame" or kind == "device-frame":
         return _frame_record((i, t, sender, raw, header, frame, codes, details, reply_to, latency_s, t_last,
-                              line_errors, sides, waited_s if kind == "host-frame" else None))
+                              line_errors, sides, waited_s if kind == "host-frame" else None, severities))
     if kind == "no-answer":
         assert v.reply_to is not None
         return TimeoutRecord(command=v.reply_to, t=v.t, header=v.header, waited_s=v.waited_s,
-                             details=details, sides=sides)
+                             details=details, sides=sides, severities=severities)
     assert v.i is not None
     direction: Direction = v.sender
     if kind == "cut":
@@ -277,6 +278,7 @@ def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -
                           line_errors=line_errors, reply_to=v.reply_to, latency_s=None)
     return JunkRecord(i=v.i, t=v.t, dir=direction, raw=v.raw, reason=reason or "flushed",
                       violations=codes, details=details, line_errors=line_errors, sides=sides,
+                      severities=severities,
                       reply_to=v.reply_to, latency_s=v.latency_s)
 
 

@@ -24,7 +24,7 @@ import time
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Final
 
-from xac1_proto import spec
+from xac1_proto import rules, spec
 
 from .capture_args import WRONG_FORMAT_LIMIT, add_capture_arguments, choose_format, open_sources
 
@@ -95,6 +95,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--storm-limit", type=_count, default=None, metavar="N",
                    help="communication-error answers in a row after which a command is comm-error-storm "
                         f"(default {spec.STORM_LIMIT})")
+    p.add_argument("--readings", choices=rules.READINGS, default=rules.DEFAULT_READINGS,
+                   help=rules.READINGS_HELP)
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text view (default: when the output is a terminal)")
     p.add_argument("--report", metavar="FILE", default=None,
@@ -210,10 +212,10 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
 
 
 def _analyzer(args: argparse.Namespace) -> Any:
-    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``)."""
+    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``, ``--readings``)."""
     from .analyzer import Analyzer
 
-    options: dict[str, Any] = {}
+    options: dict[str, Any] = {"readings": args.readings}
     if args.no_answer_timeout is not None:
         options["no_answer_timeout"] = args.no_answer_timeout
     if args.storm_limit is not None:

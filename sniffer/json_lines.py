@@ -22,7 +22,7 @@ from xac1_proto import spec
 from xac1_proto.frames import FRAME_CLASSES
 
 from .frame_parts import FrameParts
-from .records import FrameRecord, JunkRecord, Record, TimeoutRecord, field_names, sides_of
+from .records import FrameRecord, JunkRecord, Record, TimeoutRecord, field_names, severities_of, sides_of
 
 # ``json.dumps(x, separators=(",", ":"))``, the encoder made once (``Record.to_json``)
 ENCODE: Final[Callable[[Any], str]] = json.JSONEncoder(separators=(",", ":")).encode
@@ -99,7 +99,7 @@ def json_line(record: Record) -> str:
     return record.to_json() + "\n"
 
 
-_CLEAN: Final = '"violations":[],"sides":[]'
+_CLEAN: Final = '"violations":[],"sides":[],"severities":[]'
 _UNJUDGED: Final = -len(_CLEAN)  # a middle but its (clean) violations and sides
 
 
@@ -133,13 +133,15 @@ def _noted(record: FrameRecord) -> tuple[str, str] | None:
     """A frame record's ``"violations"`` and ``"sides"``, and its optional ``"details"`` and
     ``"line_errors"`` (with their leading comma), as its JSON line has them; None when one of them is not
     a tuple of strings (the line is then ``json``'s)."""
-    lists = (record.violations, sides_of(record), record.details, record.line_errors)  # as ``to_dict``
+    lists = (record.violations, sides_of(record), severities_of(record), record.details,
+             record.line_errors)  # as ``to_dict``
     if not all(type(items) is tuple and all(type(x) is str for x in items) for items in lists):
         return None
-    codes, sides, details, line_errors = ("[" + ",".join(map(ENCODE, items)) + "]" for items in lists)
+    codes, sides, severities, details, line_errors = ("[" + ",".join(map(ENCODE, items)) + "]"
+                                                      for items in lists)
     notes = (f',"details":{details}' if record.details else "") + \
         (f',"line_errors":{line_errors}' if record.line_errors else "")
-    return f'"violations":{codes},"sides":{sides}', notes
+    return f'"violations":{codes},"sides":{sides},"severities":{severities}', notes
 
 
 class JsonLines:
@@ -166,7 +168,7 @@ class JsonLines:
                 append(json_line(record))
                 continue
             (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last,
-             line_errors, sides, _window) = record
+             line_errors, sides, _window, _severities) = record
             if type(i) is not int or type(raw) is not bytes:
                 append(json_line(record))
                 continue

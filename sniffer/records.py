@@ -70,6 +70,7 @@ class FrameRecord(NamedTuple):
     line_errors: tuple[str, ...] = ()
     sides: tuple[spec.Side, ...] = ()
     window_s: float | None = None
+    severities: tuple[spec.Severity, ...] = ()
 
     @property
     def type(self) -> str:
@@ -88,7 +89,8 @@ class FrameRecord(NamedTuple):
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"type": "frame", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
                                "raw": self.raw.hex(), "header": self.header, "fields": self.fields,
-                               "violations": list(self.violations), "sides": _sides(self)}
+                               "violations": list(self.violations), "sides": _sides(self),
+                               "severities": list(severities_of(self))}
         if self.dir == "device":
             out["reply_to"] = self.reply_to
             out["latency_ms"] = self.latency_ms
@@ -118,6 +120,7 @@ class JunkRecord(NamedTuple):
     sides: tuple[spec.Side, ...] = ()
     reply_to: int | None = None  # device junk inside a command's answer window: its garbled answer
     latency_s: float | None = None
+    severities: tuple[spec.Severity, ...] = ()
 
     @property
     def type(self) -> str:
@@ -126,7 +129,8 @@ class JunkRecord(NamedTuple):
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"type": "junk", "i": self.i, "t": _round_t(self.t), "dir": self.dir,
                                "raw": self.raw.hex(), "violations": list(self.violations),
-                               "sides": _sides(self), "reason": self.reason}
+                               "sides": _sides(self), "severities": list(severities_of(self)),
+                               "reason": self.reason}
         if self.reply_to is not None:
             out["reply_to"] = self.reply_to
             out["latency_ms"] = _ms(self.latency_s)
@@ -149,6 +153,7 @@ class TimeoutRecord(NamedTuple):
     violations: tuple[spec.ViolationCode, ...] = ("no-answer",)
     dir: Direction = "host"
     sides: tuple[spec.Side, ...] = ()
+    severities: tuple[spec.Severity, ...] = ()
 
     @property
     def type(self) -> str:
@@ -157,7 +162,8 @@ class TimeoutRecord(NamedTuple):
     def to_dict(self) -> dict[str, Any]:
         return {"type": "timeout", "t": _round_t(self.t), "dir": self.dir, "command": self.command,
                 "header": self.header, "waited_ms": _ms(self.waited_s),
-                "violations": list(self.violations), "sides": _sides(self), "details": list(self.details)}
+                "violations": list(self.violations), "sides": _sides(self),
+                "severities": list(severities_of(self)), "details": list(self.details)}
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), separators=(",", ":"))
@@ -176,6 +182,15 @@ def sides_of(record: Record) -> tuple[spec.Side, ...]:
         return record.sides
     sender: spec.Side = "device" if record.dir == "device" else "host"
     return tuple(spec.VIOLATION_TABLE[c].side(sender) for c in record.violations)
+
+
+def severities_of(record: Record) -> tuple[spec.Severity, ...]:
+    """The severity of each violation of ``record`` (``error`` or ``notice``: the engine's, which follows
+    the rule's basis and the ``--readings`` setting), aligned with ``record.violations``; a record made
+    without them has each code's plain severity."""
+    if len(record.severities) == len(record.violations):
+        return record.severities
+    return tuple(spec.VIOLATIONS[c][0] for c in record.violations)
 
 
 def _sides(record: Record) -> list[str]:

@@ -22,6 +22,8 @@ import sys
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final, TextIO
 
+from xac1_proto import rules
+
 from .capture_args import add_capture_arguments
 
 if TYPE_CHECKING:
@@ -63,6 +65,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a line per replayed host line (text, default) or JSON lines")
     p.add_argument("--report", metavar="FILE.html", default=None,
                    help="also write a side-by-side page (captured vs now)")
+    p.add_argument("--readings", choices=rules.READINGS, default=rules.DEFAULT_READINGS,
+                   help=rules.READINGS_HELP)
     p.add_argument("--allow-motion", action="store_true",
                    help="send the capture's moves (0MP, 0MV) to a real device; needs --safe-range")
     p.add_argument("--safe-range", metavar="LO:HI", default=None,
@@ -150,7 +154,7 @@ def _dry_run(args: argparse.Namespace, settings: Settings) -> int:
     from .replay_guard import MotionGuard
     from .replay_script import CaptureError, ScriptStream
 
-    analyzer = Analyzer()
+    analyzer = Analyzer(readings=args.readings)
     guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge)
     out = _Output(args, sys.stdout)
     skipped = 0
@@ -205,7 +209,7 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
                   file=sys.stderr)
             return EXIT_EARLY
         end.begin()
-        analyzer = Analyzer(no_answer_timeout=settings.timeout)
+        analyzer = Analyzer(no_answer_timeout=settings.timeout, readings=args.readings)
         guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge,
                             {n: p.pos for n, p in snap.points.items()}, homed=snap.position is not None)
         out = _Output(args, sys.stdout)

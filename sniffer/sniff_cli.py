@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from xac1_proto import spec
+from xac1_proto import rules, spec
 
 HELP = "watch live traffic through two receive-only taps (host TX, device TX) and decode it"
 
@@ -22,6 +22,8 @@ def add_common_output(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--storm-limit", type=int, default=spec.STORM_LIMIT, metavar="N",
                         help="communication-error answers in a row after which a command is "
                              f"comm-error-storm (default {spec.STORM_LIMIT})")
+    parser.add_argument("--readings", choices=rules.READINGS, default=rules.DEFAULT_READINGS,
+                        help=rules.READINGS_HELP)
     parser.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                         help="colour in the text view (default: when the output is a terminal)")
     parser.add_argument("--report", metavar="FILE",
@@ -74,7 +76,8 @@ def make_session(args: argparse.Namespace, source: str,
                     f"storm limit {args.storm_limit}")
         recorder = open_recording(args.record, f"{source} ({settings})",
                                   fmt=getattr(args, "record_format", None))  # extcap: a FIFO
-    analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit)
+    analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit,
+                        readings=args.readings)
     if report is not None:
         from .report.live import ReportingSession
         return ReportingSession(analyzer, make_view(args.format, sys.stdout, args.color), recorder, report,

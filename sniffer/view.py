@@ -30,7 +30,16 @@ from xac1_proto import spec
 
 from .frame_parts import FrameParts
 from .json_lines import JsonLines
-from .records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, TimeoutRecord, sides_of, summary_json
+from .records import (
+    CAPTURE_ENDED,
+    FrameRecord,
+    JunkRecord,
+    Record,
+    TimeoutRecord,
+    severities_of,
+    sides_of,
+    summary_json,
+)
 
 FORMATS = ("text", "jsonl")
 _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
@@ -202,7 +211,7 @@ class TextView:
                     self._write_pieces(record)
                     continue
                 (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last,
-                 line_errors, _sides, _window) = record
+                 line_errors, _sides, _window, _severities) = record
                 if type(i) is not int or type(raw) is not bytes:
                     self._write_pieces(record)
                     continue
@@ -341,8 +350,8 @@ def violation_parts(record: Record) -> list[list[Part]]:
     (``host ✗ letter-o: ...``), as styled pieces."""
     out = []
     details = list(record.details)
-    for code, side in zip(record.violations, sides_of(record), strict=True):
-        severity, meaning = spec.VIOLATIONS[code]
+    for code, side, severity in zip(record.violations, sides_of(record), severities_of(record), strict=True):
+        meaning = spec.VIOLATIONS[code][1]
         colour = "yellow" if severity == spec.NOTICE else "red"
         suffix = f" ({code})"
         detail = "; ".join(d.removesuffix(suffix) for d in details if d.endswith(suffix))

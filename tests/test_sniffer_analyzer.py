@@ -46,7 +46,7 @@ def test_clean_exchange_pairs_and_measures_latency():
     assert line == {"type": "frame", "i": 1, "t": 10.0025, "dir": "device",
                     "raw": b"0RP39302012345\r\n".hex(), "header": "0RP",
                     "fields": {"n": 3, "v": 9, "a": 3, "o": 0, "pos": 0x12345},
-                    "violations": [], "sides": [], "reply_to": 0, "latency_ms": 2.5}
+                    "violations": [], "sides": [], "severities": [], "reply_to": 0, "latency_ms": 2.5}
 
 
 def test_letter_o_then_alarm_then_no_reset():
@@ -351,13 +351,16 @@ def test_sides_in_records_and_summary_by_side():
     recs += a.close()
     assert [json.loads(r.to_json())["sides"] for r in recs if r.violations] == [
         ["host"], ["host", "host"], ["device"]]  # O%C is no reset: alarm-ignored too
+    # each violation's severity: an answer's letter O is our reading, a notice (issue 35, verdict 9)
+    assert [json.loads(r.to_json())["severities"] for r in recs if r.violations] == [
+        ["error"], ["error", "notice"], ["notice"]]
     summary = a.summary()
     assert summary["violations"]["letter-o"] == 3
     assert summary["by_side"] == {"host": {"letter-o": 2, "alarm-ignored": 1}, "device": {"letter-o": 1}}
     from sniffer.view import summary_lines, violation_lines
     assert any("letter-o[/] x3 (host 2, device 1)" in line for line in summary_lines(summary))
     assert "host   ✗ letter-o" in violation_lines(recs[0])[0]
-    assert "device ✗ letter-o" in violation_lines(recs[-1])[0]
+    assert "device ! letter-o" in violation_lines(recs[-1])[0]  # a notice (was ✗ before issue 35)
 
 
 # ---- one path: feed, feed_many with records, feed_many counting only ----

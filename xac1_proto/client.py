@@ -22,7 +22,7 @@ from typing import TypeVar, cast
 
 import serial
 
-from . import motion, spec
+from . import motion, rules, spec
 from . import urlhandler as _urlhandler  # noqa: F401  (registers xac1sim:// for serial_for_url)
 from .codec import diagnose, show_bytes
 from .conversation import Conversation, Verdict
@@ -100,7 +100,8 @@ class Client:
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS, move_margin: float = 2.0,
                  on_traffic: TrafficHook | None = None, time_scale: float = 1.0,
                  stroke: int = FULL_STROKE, drain_quiet: float = 0.05,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 readings: rules.Readings = rules.DEFAULT_READINGS) -> None:
         if timeout <= 0 or time_scale < 0 or move_margin < 0 or drain_quiet < 0:
             raise ValueError("timeout must be > 0; time_scale, move_margin and drain_quiet >= 0")
         if storm_limit is not None and storm_limit < 1:
@@ -113,7 +114,8 @@ class Client:
         self.clock = clock
         self.storm_limit = storm_limit
         self.conversation = Conversation(no_answer_timeout=timeout,
-                                         storm_limit=storm_limit or spec.STORM_LIMIT, speeds=speeds)
+                                         storm_limit=storm_limit or spec.STORM_LIMIT, speeds=speeds,
+                                         readings=readings)
         self._budget = MoveBudget(speeds, stroke)
         self._read_t = 0.0
         self._lock = threading.RLock()
@@ -167,7 +169,7 @@ class Client:
         decoded leniently with its violations. Raises only ``ResponseTimeout`` (no frame-shaped
         answer in time) and ``CommunicationHalted``; the answers still count for the storm guard."""
         command, violations = diagnose(raw, spec.COMMAND)
-        if any(v.code not in spec.NOTICES for v in violations):
+        if any(v.is_error for v in violations):
             command = None  # a malformed command is no move: it gets the plain timeout (e.g. 0MV vel 00)
         return self._exchange(bytes(raw), command, timeout)
 

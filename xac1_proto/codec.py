@@ -85,7 +85,7 @@ def _find_spec(data: bytes, role: spec.Role, out: list[Violation]) -> spec.Frame
 
 def _letter_o(fs: spec.FrameSpec, role: str) -> Violation:
     return Violation("letter-o", 0, f"{fs.header} {role}: byte 0: expected '0' (the digit zero), got 'O' "
-                     f"(the letter O) (letter-o)")
+                     f"(the letter O) (letter-o)", "letter-o" if role == spec.COMMAND else "letter-o-answer")
 
 
 def _common_prefix(a: bytes, b: bytes) -> int:
@@ -133,6 +133,10 @@ def _decode_field(name: str, raw: bytes, at: int, fs: spec.FrameSpec,
     try:
         value = grammar.FIELD_CONSTRUCTS[name].parse(raw)
     except (cs.ConstructError, UnicodeDecodeError):
+        if field.text and raw.isascii() and raw.decode().isprintable():  # ver is only shown as 3 digits
+            out.append(Violation("field-range", at, f"{where}: expected {want}, got {show_bytes(raw)} "
+                                 f"(field-range)", "version-digits"))
+            return raw.decode()
         out.append(Violation("field-range", at, f"{where}: expected {want} "
                              f"{'' if field.text else range_text(field, lo, hi)}, got "
                              f"{show_bytes(raw)} (field-range)".replace("  ", " ")))
@@ -142,7 +146,8 @@ def _decode_field(name: str, raw: bytes, at: int, fs: spec.FrameSpec,
                              f"{show_bytes(raw)} (lowercase-hex)"))
     if not field.text and not lo <= value <= hi:
         out.append(Violation("field-range", at, f"{where}: expected {range_text(field, lo, hi)}, "
-                             f"got {show_bytes(raw)} (field-range)"))
+                             f"got {show_bytes(raw)} (field-range)", _RANGE_READINGS.get((fs.header, name,
+                                                                                          value), "")))
     if name == "code" and fs.header == spec.ALARM_HEADER:
         if value in spec.RESERVED_ALARMS:
             out.append(Violation("reserved-alarm", at, f"{where}: alarm {raw.decode()} has no "
@@ -151,6 +156,10 @@ def _decode_field(name: str, raw: bytes, at: int, fs: spec.FrameSpec,
             out.append(Violation("unknown-alarm", at, f"{where}: alarm {raw.decode()} is not in "
                                  f"the vendor's list (unknown-alarm)"))
     return value
+
+
+# out-of-range values whose range is our reading, not the text's: 0WC N 0 (silent item 4)
+_RANGE_READINGS: Final[dict[tuple[str, str, object], str]] = {("0WC", "n", 0): "0wc-point-0"}
 
 
 def _walk(body: bytes, fs: spec.FrameSpec, out: list[Violation]) -> dict[str, int | str] | None:
@@ -213,7 +222,7 @@ def read_frame(data: bytes, role: str) -> Reading:
     checked = _check_role(role)
     frame, found = _diagnose_faulty(data, checked)
     header = frame.header if frame is not None else header_of(data, checked)
-    error = frame is None or any(v.code not in spec.NOTICES for v in found)
+    error = frame is None or any(v.is_error for v in found)
     return Reading(frame, found, header, error)
 
 

@@ -23,7 +23,10 @@ times, order cannot tell it from the first line left unanswered: the verdict say
 line itself is not owed an answer. A line sent during a move is ``command-during-motion`` and is
 discarded by the device (silent item 10).
 
-The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].side(sender)``):
+The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].side(sender)``). Each
+violation names its row of the rulebook (``rules.RULE_ROWS``: code, basis and so severity; a rule that is
+our reading is a notice unless ``readings="error"``); docs/protocol.md "Violation codes" is generated
+from those rows. Where each code is found:
 
 | code | on | rule (docs/protocol.md) |
 |---|---|---|
@@ -71,7 +74,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final, Generic, Literal, NamedTuple, TypeVar
 
-from . import motion, spec
+from . import motion, rules, spec
 from .codec import header_of, read_frame, show_bytes
 from .errors import Violation
 from .frames import (
@@ -201,7 +204,17 @@ class Verdict(NamedTuple):
     @property
     def errors(self) -> tuple[Violation, ...]:
         """The violations that break a rule (notices left out)."""
-        return tuple(v for v in self.violations if v.code not in spec.NOTICES)
+        return tuple(v for v in self.violations if v.is_error)
+
+    @property
+    def severities(self) -> tuple[spec.Severity, ...]:
+        """The severity of each of ``codes`` (aligned with it): ``error`` when any of its violations is
+        an error, else ``notice`` (``xac1_proto.rules``: the severity follows the rule's basis)."""
+        worst: dict[spec.ViolationCode, spec.Severity] = {}
+        for v in self.violations:
+            if worst.get(v.code) != spec.ERROR:
+                worst[v.code] = v.severity
+        return tuple(worst.values())
 
 
 # a verdict from its fields in order: ``_make`` skips the keyword handling of the generated ``__new__``
@@ -225,9 +238,6 @@ def side_of(code: spec.ViolationCode, sender: spec.Side) -> spec.Side:
     return spec.VIOLATION_TABLE[code].side(sender)
 
 
-def _v(code: spec.ViolationCode, sentence: str, where: str = _BEHAVIOUR) -> Violation:
-    """A conversation-level violation: the sentence, the rule's docs/protocol.md section, the code."""
-    return Violation(code, None, f"{sentence}; {where} ({code})")
 
 
 # well-formed commands that raise no alarm of their own (our reading of vendor §6 and §7): an alarm
@@ -248,7 +258,7 @@ class _Line:
     command with an alarm of its own: silent item 2)."""
 
     __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
-                 "plain")
+                 "plain", "junk")
 
     def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  deadline: float | None, waited_s: float, overlapped: bool = False,
@@ -263,6 +273,7 @@ class _Line:
         self.overlapped = overlapped
         self.is_move = is_move
         self.plain = plain
+        self.junk = False  # a host junk run ending in LF: no command (owed an alarm answer: our reading)
 
     @property
     def owed(self) -> bool:
@@ -283,7 +294,7 @@ def _show(name: str, value: object) -> str:
 
 
 def _is_error(violations: list[Violation]) -> bool:
-    return any(v.code not in spec.NOTICES for v in violations)
+    return any(v.is_error for v in violations)
 
 
 class Conversation:
@@ -291,14 +302,20 @@ class Conversation:
 
     ``no_answer_timeout``: seconds after a line's last byte before silence is ``no-answer`` (moves get
     more); ``storm_limit``: ``0%%01`` answers in a row after which a host command is ``comm-error-storm``;
-    ``speeds``: the speed table that prices a move's answer window.
+    ``speeds``: the speed table that prices a move's answer window; ``readings``: the severity of the
+    rules that are our reading of a silent text (``notice``, the default, or ``error``: ``rules``).
     """
 
     def __init__(self, *, no_answer_timeout: float = spec.NO_ANSWER_TIMEOUT_S,
                  storm_limit: int = spec.STORM_LIMIT,
-                 speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS) -> None:
+                 speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,
+                 readings: rules.Readings = rules.DEFAULT_READINGS) -> None:
         if no_answer_timeout <= 0 or storm_limit < 1:
             raise ValueError("no_answer_timeout must be > 0 and storm_limit >= 1")
+        if readings not in rules.READINGS:
+            raise ValueError(f"readings must be one of {', '.join(rules.READINGS)}, got {readings!r}")
+        self.readings = readings
+        self._severity = rules.severities(readings)
         self.no_answer_timeout = no_answer_timeout
         self.storm_limit = storm_limit
         self.speeds = speeds
@@ -312,6 +329,21 @@ class Conversation:
         self._answer_since: float | None = None  # an answer began at this time and is still arriving
         self._cut: _Line | None = None  # the line whose answer the end of the data cut
         self._cut_since: float | None = None  # when that cut answer began
+
+    def _v(self, rule: str, sentence: str, where: str = _BEHAVIOUR) -> Violation:
+        """A conversation-level violation of ``rule`` (``rules.RULES``): the sentence, the rule's
+        docs/protocol.md section, the code; its severity under this conversation's readings."""
+        code = rules.RULES[rule].code
+        return Violation(code, None, f"{sentence}; {where} ({code})", rule, self._severity[rule])
+
+    def _graded(self, violations: tuple[Violation, ...]) -> tuple[Violation, ...]:
+        """The decoder's violations with their severity under ``readings`` (the decoder grades them by
+        the default)."""
+        if self.readings == rules.DEFAULT_READINGS or not violations:
+            return violations
+        sev = self._severity
+        return tuple(v if v.severity == sev[v.rule] else Violation(v.code, v.offset, v.message, v.rule,
+                                                                      sev[v.rule]) for v in violations)
 
     # ---- what callers ask ----
 
@@ -364,7 +396,7 @@ class Conversation:
         if pressed:
             self._stop_over(k.latched)
             k.latched = Fact(spec.ALARM_ESTOP, KNOWN)
-            k.position = _NOT_KNOWN
+            k.position, k.outputs = _NOT_KNOWN, _NOT_KNOWN  # nothing stated of the OUT ports across a stop
             return
         if k.latched.value == spec.ALARM_ESTOP:  # an alarm held under the stop is latched again
             k.latched = k.under_stop if k.under_stop.value is not None else Fact(None, KNOWN)
@@ -396,6 +428,9 @@ class Conversation:
         if type(raw) is not bytes:
             raw = bytes(raw)
         frame, violations, header, error = read_frame(raw, spec.COMMAND)
+        if violations and self.readings != rules.DEFAULT_READINGS:
+            violations = self._graded(violations)
+            error = frame is None or any(v.is_error for v in violations)
         found = [*violations]
         if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
             found += self._host_duties(header, error)
@@ -416,7 +451,7 @@ class Conversation:
         found = [Violation("garbage", 0, f"{len(raw)} host bytes that form no frame: {show_bytes(raw)} "
                            f"(garbage)")]
         if raw.endswith(b"\n"):
-            self._enqueue(i, _ERROR, None, None, t_last, found, window)
+            self._enqueue(i, _ERROR, None, None, t_last, found, window).junk = True
         out.append(Verdict("host-junk", HOST, i, bytes(raw), violations=tuple(found), t=t_first,
                            t_last=t_last))
         return out
@@ -440,12 +475,12 @@ class Conversation:
         if type(raw) is not bytes:
             raw = bytes(raw)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
-        found = [*violations]
+        found = [*self._graded(violations)]
         line, skipped = self._pair(header, t_first)
         if skipped:
             out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
         if line is None:
-            found.append(_v("unsolicited-answer", f"{header or 'this'} answer with no command waiting "
+            found.append(self._v("unsolicited-answer", f"{header or 'this'} answer with no command waiting "
                             f"for it", _CODES))
             reply_to = latency = None
         else:
@@ -585,7 +620,7 @@ class Conversation:
         a move) and whether it overlaps a line owed an answer."""
         what = header or "this line"
         if self._motion is not None:
-            found.append(_v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
+            found.append(self._v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
                             f"waits for its answer"))
             return _DISCARD, False
         first = next((w for w in self._queue if w.owed), None)
@@ -595,7 +630,7 @@ class Conversation:
         if first.t_last is None and t_last is None:
             detail += (f"; the capture has no time, so this looks the same as {first.name()} left "
                        f"unanswered and the host going on after waiting (no-answer)")
-        found.append(_v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
+        found.append(self._v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
         return kind, True
 
     def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line] | tuple[()]]:
@@ -674,7 +709,8 @@ class Conversation:
             when = "the data ended first"
         else:
             when = f"nothing came within {w.waited_s:.3f} s of its last byte"
-        violation = _v("no-answer", f"{w.name()} got no answer: it is owed {owed}, but {when}")
+        rule = "no-answer-junk" if w.junk else "no-answer-error" if w.kind == _ERROR else "no-answer"
+        violation = self._v(rule, f"{w.name()} got no answer: it is owed {owed}, but {when}")
         return Verdict("no-answer", HOST, None, header=w.header, violations=(violation,), reply_to=w.i,
                        t=t, waited_s=None if t is None else w.waited_s)
 
@@ -689,14 +725,17 @@ class Conversation:
         good_reset = header == spec.RESET_HEADER and not error
         if k.storm_run >= self.storm_limit and (good_reset or self._reset_in_storm):
             which = "an alarm reset" if good_reset else "the first command after a successful alarm reset"
-            out.append(_v("storm-recovery", f"{what}, {which}, sent after {k.storm_run} communication-error "
+            out.append(self._v("storm-recovery",
+                               f"{what}, {which}, sent after {k.storm_run} communication-error "
                           f"answers (0%%01) in a row: recovering, which the vendor text does not forbid"))
         elif k.storm_run >= self.storm_limit:
-            out.append(_v("comm-error-storm", f"{what} sent after {k.storm_run} communication-error answers "
+            out.append(self._v("comm-error-storm",
+                               f"{what} sent after {k.storm_run} communication-error answers "
                           f"(0%%01) in a row; the host must stop after {self.storm_limit}"))
         self._reset_in_storm = False
         if self._unreset_alarm and not good_reset:
-            out.append(_v("alarm-ignored", f"{what} sent after an alarm answer without an alarm reset (0%C)"))
+            out.append(self._v("alarm-ignored",
+                               f"{what} sent after an alarm answer without an alarm reset (0%C)"))
         if good_reset:
             self._unreset_alarm = False
         return out
@@ -727,7 +766,8 @@ class Conversation:
                 self._outcome_unknown(line)
             return
         if line.kind == _ERROR:
-            found.append(_v("error-accepted", f"{header} answer to {line.name()}, which breaks the frame "
+            found.append(self._v("error-accepted",
+                                 f"{header} answer to {line.name()}, which breaks the frame "
                             f"table: an error is answered with an alarm answer (0%%Ec)"))
             self._outcome_unknown(line)
             return
@@ -736,13 +776,16 @@ class Conversation:
             return
         if k.latched.value is not None:
             self._latch_on_normal_answer(line, found)
+        elif k.stop_cleared.value is not None:  # answered normally after the release: the alarm the
+            k.stop_cleared = _NOT_KNOWN  # reset cleared did not come back; a later one is new
         command = line.frame
         if command is not None and self._pairing(line, command, header, frame, found) \
                 and not (found and _is_error(found)):  # a clean exchange: what it establishes
-            k.mode = _MODE_1  # silent item 11: communicating gives mode 1 (0CM says otherwise)
-            learn = _LEARNERS.get(header)
+            learn = _LEARNERS.get(header)  # (judged against the mode before this exchange)
             if learn is not None:
                 learn(self, command, frame, found)
+            if header != SwitchMode.HEADER:
+                k.mode = _MODE_1  # silent item 11: communicating gives mode 1
         else:
             self._outcome_unknown(line)
 
@@ -753,16 +796,18 @@ class Conversation:
         latched = k.latched.value
         released = latched == spec.ALARM_ESTOP and not self._stop_known_pressed()  # perhaps, unseen
         if line is not None and line.is_reset and code != spec.ALARM_ESTOP:
-            found.append(_v("latch-broken", f"the alarm reset {line.name()} was answered with alarm "
+            found.append(self._v("reset-refused", f"the alarm reset {line.name()} was answered with alarm "
                             f"{code:02X}: 0%C clears every alarm but emergency stop (0E) and answers 0%C00"))
         elif code == k.stop_cleared.value and code != spec.ALARM_ESTOP and line is not None \
                 and line.kind == _COMMAND and line.plain and line.header in _RAISES_NO_ALARM:
-            found.append(_v("latch-broken", f"alarm {code:02X} answers {line.name()} after the emergency "
+            found.append(self._v("stop-alarm-back",
+                                 f"alarm {code:02X} answers {line.name()} after the emergency "
                             f"stop, but the alarm reset during the stop cleared it: 0%C clears every alarm "
                             f"but emergency stop (0E)"))
         elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged \
                 and not released:
-            found.append(_v("latch-broken", f"alarm {latched:02X} is latched, but the answer is alarm "
+            found.append(self._v("latch-code-changed",
+                                 f"alarm {latched:02X} is latched, but the answer is alarm "
                             f"{code:02X}: a latched alarm is repeated until a reset"))
         if code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
             self._stop_over(k.latched)
@@ -777,7 +822,7 @@ class Conversation:
             if line is None or not line.is_reset:
                 self._unreset_alarm = True
         if code == spec.ALARM_ESTOP:
-            k.position = _NOT_KNOWN
+            k.position, k.outputs = _NOT_KNOWN, _NOT_KNOWN  # nothing stated of the OUT ports across a stop
         elif code == spec.ALARM_HOMING:  # homing failed: homed or not is learnt from 0RC ("Alarms")
             k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN
         if line is not None:
@@ -795,7 +840,8 @@ class Conversation:
         k.mode = Fact(1, KNOWN)  # silent item 11: communicating gives mode 1
         self._reset_in_storm = k.storm_run >= self.storm_limit
         if k.stop_pressed.value is True and k.stop_pressed.status == KNOWN:
-            found.append(_v("estop-cleared", "the alarm reset answered 0%C00 while the emergency stop input "
+            found.append(self._v("estop-cleared",
+                                 "the alarm reset answered 0%C00 while the emergency stop input "
                             "is pressed: emergency stop (0E) stays latched until the input is released"))
             return  # the device is wrong; the stop is still on
         if k.latched.value == spec.ALARM_ESTOP:
@@ -811,13 +857,14 @@ class Conversation:
         if latched == spec.ALARM_ESTOP and not self._stop_known_pressed():
             under = k.under_stop.value
             if under is not None and k.under_stop.judged:
-                found.append(_v("latch-broken", f"{line.header} got a normal answer after the emergency "
+                found.append(self._v("stop-alarm-back",
+                                     f"{line.header} got a normal answer after the emergency "
                                 f"stop, but alarm {under:02X} was latched before it and no reset cleared it"))
             k.latched = Fact(None, KNOWN)  # the stop input was released (silent item 3)
             k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN
             k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
             return
-        found.append(_v("latch-broken", f"{line.header} got a normal answer while alarm {latched:02X} "
+        found.append(self._v("latch-broken", f"{line.header} got a normal answer while alarm {latched:02X} "
                         f"({spec.alarm_meaning(latched)}) should still be latched"))
 
     def _stop_known_pressed(self) -> bool:
@@ -834,26 +881,29 @@ class Conversation:
         """Answer-mismatch and echo-mismatch (docs/protocol.md "Frames"; echoes judged by fields, never
         bytes) of the answer ``frame`` to ``line``'s command ``cmd``. True when the answer fits it."""
         if header != line.header:
-            found.append(_v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
+            found.append(self._v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
             return False
         if header in _ECHOED:
             if tuple.__ne__(frame, cmd):
                 mine, theirs = frame.fields(), cmd.fields()
                 diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
                                  for k, v in mine.items() if theirs.get(k) != v)
-                found.append(_v("echo-mismatch", f"{header} echo differs from the command {line.name()}: "
+                found.append(self._v("echo-mismatch",
+                                     f"{header} echo differs from the command {line.name()}: "
                                 f"{diff}"))
                 return False
         elif header in _BOTH_N and frame.n != cmd.n:  # type: ignore[attr-defined]
-            found.append(_v("answer-mismatch", f"{header} answer for N={frame.n:X} to the command "  # type: ignore[attr-defined]
+            found.append(self._v("answer-mismatch",
+                                 f"{header} answer for N={frame.n:X} to the command "  # type: ignore[attr-defined]
                             f"{line.name()} for N={cmd.n:X}", _CODES))  # type: ignore[attr-defined]
             return False
         return True
 
     # ---- knowledge and read-back ----
 
-    def _readback(self, found: list[Violation], what: str, seen: object, fact: Fact[T], how: str) -> None:
-        found.append(_v("readback-mismatch", f"{what} reads back {seen}, but the conversation "
+    def _readback(self, found: list[Violation], what: str, seen: object, fact: Fact[T], how: str,
+                  rule: str = "readback-mismatch") -> None:
+        found.append(self._v(rule, f"{what} reads back {seen}, but the conversation "
                         f"{'established' if fact.status == KNOWN else 'read earlier'} {how}"))
 
     def _on_switch_mode(self, c: Frame, a: Frame, found: list[Violation]) -> None:
@@ -880,7 +930,7 @@ class Conversation:
         pos = k.position
         if pos.judged and a.pos != pos.value:
             self._readback(found, f"0WC{a.n:X}'s Pos", f"{a.pos:06X}", pos,
-                           f"the axis at {pos.value:06X}")
+                           f"the axis at {pos.value:06X}", "readback-position")
         k.points[a.n] = Fact(PointData(a.v, a.a, a.o, a.pos), LEARNT)
 
     def _on_move_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
@@ -903,7 +953,7 @@ class Conversation:
         k = self.knowledge
         o = a.o  # type: ignore[attr-defined]
         if k.outputs.judged and o != k.outputs.value:
-            self._readback(found, "0RS's O", o, k.outputs, f"O={k.outputs.value}")
+            self._readback(found, "0RS's O", o, k.outputs, f"O={k.outputs.value}", "readback-outputs")
         elif k.outputs != (o, LEARNT):
             k.outputs = Fact(o, LEARNT)
 
@@ -918,7 +968,8 @@ class Conversation:
         k = self.knowledge
         version = a.version  # type: ignore[attr-defined]
         if k.version.judged and version != k.version.value:
-            self._readback(found, "0RV", version, k.version, f"version {k.version.value}")
+            self._readback(found, "0RV", version, k.version, f"version {k.version.value}",
+                           "readback-version")
         else:
             k.version = Fact(version, LEARNT)
 
@@ -933,20 +984,28 @@ class Conversation:
             k.points[a.n] = Fact(seen, LEARNT)
 
     def _on_read_current(self, c: Frame, a: ReadCurrentAnswer, found: list[Violation]) -> None:
-        """0RC: before homing N, V, A 0 and Pos FFFFFF (stated); after a move, where the move went."""
+        """0RC: before homing N, V, A 0 and Pos FFFFFF (vendor §7 (3), whatever else is known); a homed
+        position while the axis is known not homed only where the mode is known 1 throughout (in mode 0,
+        after a power-on or an unseen power cycle, the external I/O may home it: §7 (10), silent item 11);
+        after a move, where the move went."""
         k = self.knowledge
         unknown = a.pos == spec.UNKNOWN_POSITION
-        if k.homed.value is False and k.homed.judged:
-            if (a.n, a.v, a.a, a.pos) != (0, 0, 0, spec.UNKNOWN_POSITION):
-                self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", k.homed,
-                               "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)")
+        if unknown and (a.n, a.v, a.a) != (0, 0, 0):
+            self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", Fact(False, KNOWN),
+                           "Pos FFFFFF, which comes with N, V, A 0", "readback-unhomed")
+            return
+        if k.homed.value is False and k.homed.status == KNOWN and k.mode == _MODE_1 and not unknown:
+            self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", k.homed,
+                           "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)",
+                           "readback-unhomed")
             return
         if unknown:  # the device states it is not homed: learnt, never judged (an unseen power cycle...)
             k.homed, k.position = Fact(False, LEARNT), _NOT_KNOWN
+            k.outputs = _NOT_KNOWN  # nothing is stated of the OUT ports across a power cycle
             return
         if k.position.judged and a.pos != k.position.value:
             self._readback(found, "0RC's Pos", f"{a.pos:06X}", k.position,
-                           f"the axis at {k.position.value:06X}")
+                           f"the axis at {k.position.value:06X}", "readback-position")
             return
         if k.homed.value is not True:
             k.homed = Fact(True, LEARNT)

@@ -3,7 +3,7 @@
 How this works: docs/protocol.md holds marker comments ``<!-- generated: NAME -->`` ...
 ``<!-- end generated -->``; ``update(text)`` replaces what lies between each pair with ``TABLES[NAME]()``
 rendered from the spec tables (``FRAME_SPECS`` for "Frames", ``ALARMS`` for "Alarms",
-``VIOLATION_SPECS`` for "Violation codes"). Everything outside the markers is hand-written and kept.
+``rules.RULE_ROWS`` for "Violation codes"). Everything outside the markers is hand-written and kept.
 ``python -m xac1_proto.docgen --write`` rewrites the page in place; ``--check`` exits 1 when it is out of
 date (a test runs the same comparison).
 """
@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Final
 
-from . import spec
+from . import rules, spec
 
 DEFAULT_PATH: Final = Path(__file__).resolve().parent.parent / "docs" / "protocol.md"
 END: Final = "<!-- end generated -->"
@@ -73,10 +73,12 @@ def alarms_table() -> str:
 
 
 def violations_table() -> str:
-    """One row a violation code, in report order."""
-    rows = ["| code | severity | whose duty | meaning | rule stated in |", "|---|---|---|---|---|"]
-    for v in spec.VIOLATION_SPECS:
-        rows.append(f"| `{v.code}` | {v.severity} | {_DUTY_TEXT[v.duty]} | {v.meaning} | \"{v.section}\" |")
+    """One row a rule of the rulebook (``rules.RULE_ROWS``), in report order: its code, severity (derived
+    from its basis), whose duty, what it checks and its basis."""
+    rows = ["| code | rule | severity | whose duty | checks | basis |", "|---|---|---|---|---|---|"]
+    for r in rules.RULE_ROWS:
+        rows.append(f"| `{r.code}` | {r.name} | {r.severity} | {_DUTY_TEXT[r.duty]} | {r.checks} | "
+                    f"{r.basis.show()} |")
     return "\n".join(rows)
 
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .spec import ViolationCode
+    from .spec import Severity, ViolationCode
 
 
 class XAC1Error(Exception):
@@ -15,11 +15,30 @@ class XAC1Error(Exception):
 
 @dataclass(frozen=True)
 class Violation:
-    """One deviation from the protocol: a docs/protocol.md violation code, where, and what was wrong."""
+    """One deviation from the protocol: a docs/protocol.md violation code, where, and what was wrong;
+    ``rule``: the rulebook row it breaks (``xac1_proto.rules``; default: the code's plain rule);
+    ``severity``: ``error`` or ``notice`` (default: the rule's, derived from its basis)."""
 
     code: ViolationCode
     offset: int | None
     message: str
+    rule: str = ""
+    severity: Severity = "error"
+
+    def __init__(self, code: ViolationCode, offset: int | None, message: str, rule: str = "",
+                 severity: Severity | None = None) -> None:
+        from .rules import severity as rule_severity  # (rules imports spec, which may import this module)
+
+        object.__setattr__(self, "code", code)
+        object.__setattr__(self, "offset", offset)
+        object.__setattr__(self, "message", message)
+        object.__setattr__(self, "rule", rule or code)
+        object.__setattr__(self, "severity", severity or rule_severity(rule or code))
+
+    @property
+    def is_error(self) -> bool:
+        """Does it break a rule (not a notice)?"""
+        return self.severity == "error"
 
     def __str__(self) -> str:
         return self.message

@@ -46,7 +46,7 @@ class Exchange:
     @property
     def errors(self) -> list[Violation]:
         """The violations that break a rule (notices left out)."""
-        return [v for v in self.violations if v.code not in spec.NOTICES]
+        return [v for v in self.violations if v.is_error]
 
     @property
     def alarm(self) -> AlarmAnswer | None:

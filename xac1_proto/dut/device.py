@@ -101,7 +101,8 @@ class DeviceUnderTest:
     def open(cls, settings: Settings) -> DeviceUnderTest:
         from xac1_proto.client import Client  # heavy: only when a run really starts
 
-        return cls(settings, Client(settings.port, timeout=settings.timeout, time_scale=settings.time_scale))
+        return cls(settings, Client(settings.port, timeout=settings.timeout, time_scale=settings.time_scale,
+                                    readings=settings.readings))
 
     def close(self) -> None:
         self.client.close()

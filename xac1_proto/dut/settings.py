@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from xac1_proto import spec
+from xac1_proto.rules import DEFAULT_READINGS, READINGS, Readings
 
 SIMULATOR_SCHEME = "xac1sim://"
 # The built-in simulator with instant motion: a run against it takes seconds, not minutes.
@@ -98,12 +99,13 @@ class Settings:
     scratch_points: tuple[int, ...] = ()  # points the user lets the suite overwrite, even if never written
     restore_mode0: bool = False  # send 0CM0 as the very last command (external start enabled again)
     cli: bool = False  # started by ``xac1 conformance``: name its options (--allow-motion), not pytest's
+    readings: Readings = DEFAULT_READINGS  # our readings' severity: notice, or error (``xac1_proto.rules``)
 
     @classmethod
     def make(cls, port: str | None, allow_motion: bool, fresh: bool, safe_range: str | None,
              seed: int | None = None, examples: int | None = None,
              timeout: float | None = None, scratch_points: str | None = None, restore_mode0: bool = False,
-             cli: bool = False) -> Settings:
+             cli: bool = False, readings: str | None = None) -> Settings:
         port = port or DEFAULT_PORT
         sim = is_simulator(port)
         rng = parse_safe_range(safe_range) if safe_range else None
@@ -117,12 +119,15 @@ class Settings:
             raise SettingsError(f"--xac1-examples: expected a positive count, got {examples}")
         if timeout is not None and timeout <= 0:
             raise SettingsError(f"--xac1-timeout: expected seconds > 0, got {timeout}")
+        chosen = next((r for r in READINGS if r == (readings or DEFAULT_READINGS)), None)
+        if chosen is None:
+            raise SettingsError(f"--xac1-readings: expected one of {', '.join(READINGS)}, got {readings!r}")
         return cls(port=port, simulator=sim, motion=motion, fresh=fresh or sim, safe_range=rng,
                    seed=DEFAULT_SEED if seed is None else seed, examples=examples or (30 if sim else 10),
                    timeout=timeout or (SIMULATOR_TIMEOUT_S if sim else spec.NO_ANSWER_TIMEOUT_S),
                    time_scale=_sim_time_scale(port) if sim else 1.0,
                    scratch_points=parse_points(scratch_points) if scratch_points else (),
-                   restore_mode0=restore_mode0, cli=cli)
+                   restore_mode0=restore_mode0, cli=cli, readings=chosen)
 
     def flag(self, name: str) -> str:
         """How the user spells option ``name`` (``allow-motion``) in the command they ran."""
