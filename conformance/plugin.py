@@ -271,8 +271,10 @@ def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | Non
     from .report import kind_of
 
     for name, path, kinds in (("report", report, ("md", "html")), ("junit", junit, ("xml",))):
-        if not path:
+        if path is None:
             continue
+        if not path:
+            return f"{flag(name)} '': give the name of a file"
         p = Path(path)
         if kind_of(p) not in kinds:
             return f"{flag(name)} {path}: the name must end in {' or '.join('.' + k for k in kinds)}"

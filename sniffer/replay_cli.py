@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         settings = _settings(args)
     except SettingsError as exc:
         return _error(str(exc))
-    if args.report:
+    if args.report is not None:
         from xac1_proto.output_file import OutputFileError, check_output
 
         try:  # a report path that cannot take the page is known before anything is sent
@@ -295,7 +295,7 @@ def _conclude(args: argparse.Namespace, script: Script, fmt: str, outcome: Outco
               f"{STOPPED_LIMIT} answered in the capture got not a byte back, nor did 0RV", file=sys.stderr)
     for line in outcome.restore:
         print(f"{PROGRAM}: restore: {line}", file=sys.stderr)
-    if args.report:
+    if args.report is not None:
         from .replay_report import write_report
 
         try:

@@ -65,11 +65,11 @@ def make_session(args: argparse.Namespace, source: str,
     if args.storm_limit < 1:
         raise ValueError(f"--storm-limit must be at least 1, got {args.storm_limit}")
     report = None
-    if args.report:
+    if args.report is not None:
         from .report import SessionReport
         report = SessionReport.open(args.report, [(source, "live")], args.timeout)  # ReportError: ValueError
     recorder = None
-    if args.record:
+    if args.record is not None:
         settings = (f"baud {getattr(args, 'baud', spec.BAUD)}, timeout {args.timeout} s, "
                     f"storm limit {args.storm_limit}")
         recorder = open_recording(args.record, f"{source} ({settings})",

@@ -6,7 +6,9 @@ per chunk as it was seen: ``{"type":"chunk","t":<unix s or null>,"dir":"host"|"d
 ``{"type":"note","t":<unix s>,"text":"..."}`` (``xac1 sim --replay``: a line not in the capture); readers
 skip them. Each line is written and flushed to the OS as
 soon as the chunk is seen, so a process killed with kill -9 keeps every line written; the file is
-fsynced at least once a second (and on close) against power loss.
+fsynced at least once a second (and on close) against power loss, when it is a regular file: a FIFO
+or ``/dev/null`` is written without syncing. The file is opened by ``output_file.open_stream``: never a
+FIFO nobody reads, never an existing file that is not a recording.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import IO, Any, Protocol
 
 from .chunk import Chunk
+from .output_file import can_sync, open_stream
 
 VERSION = 1
 FSYNC_EVERY_S = 1.0
@@ -30,7 +33,8 @@ class RecordingWriter:
     def __init__(self, path: str | os.PathLike[str], source: str = "",
                  started: float | None = None) -> None:
         self.path = Path(path)
-        self._f: IO[str] = open(self.path, "w", encoding="ascii", buffering=1)  # noqa: SIM115
+        self._f: IO[str] = open_stream(path, "w", encoding="ascii", buffering=1)
+        self._syncable = can_sync(self._f)
         self._last_sync = time.monotonic()
         self._write({"type": "recording", "version": VERSION,
                      "started": time.time() if started is None else started, "source": source})
@@ -39,7 +43,7 @@ class RecordingWriter:
         self._f.write(json.dumps(obj, separators=(",", ":")) + "\n")
         self._f.flush()
         now = time.monotonic()
-        if now - self._last_sync >= FSYNC_EVERY_S:
+        if self._syncable and now - self._last_sync >= FSYNC_EVERY_S:
             os.fsync(self._f.fileno())
             self._last_sync = now
 
@@ -55,9 +59,12 @@ class RecordingWriter:
 
     def close(self) -> None:
         if not self._f.closed:
-            self._f.flush()
-            os.fsync(self._f.fileno())
-            self._f.close()
+            try:
+                self._f.flush()
+                if self._syncable:
+                    os.fsync(self._f.fileno())
+            finally:
+                self._f.close()
 
     def __enter__(self) -> RecordingWriter:
         return self

@@ -34,7 +34,6 @@ option schema) on the live path, and neither would be used to read: the reader s
 from __future__ import annotations
 
 import os
-import stat
 import struct
 import time
 from collections.abc import Iterable, Sequence
@@ -43,6 +42,7 @@ from typing import IO, Final, Protocol
 
 from xac1_proto import __version__, spec
 from xac1_proto.chunk import HOST, Chunk
+from xac1_proto.output_file import can_sync, open_stream
 from xac1_proto.recording import RecordingWriter
 
 from ..records import FrameRecord, Record, TimeoutRecord
@@ -106,8 +106,8 @@ class PcapngRecorder:
 
     def __init__(self, path: str | os.PathLike[str], source: str = "", started: float | None = None) -> None:
         self.path = Path(path)
-        self._f: IO[bytes] = open(self.path, "wb")  # noqa: SIM115 - closed by close()
-        self._syncable = stat.S_ISREG(os.fstat(self._f.fileno()).st_mode)  # not a FIFO (extcap)
+        self._f: IO[bytes] = open_stream(path)  # never a FIFO nobody reads, nor someone's file
+        self._syncable = can_sync(self._f)  # not a FIFO (extcap), not /dev/null
         self._last_sync = time.monotonic()
         self._last_t = time.time() if started is None else started
         self._last_dir: str | None = None

@@ -195,7 +195,7 @@ def _run(args: argparse.Namespace, end: OrderlyEnd) -> int:
             print(f"xac1 sim: error: cannot write the state file {args.state}: {exc}", file=sys.stderr)
 
     writer = None
-    if args.log:
+    if args.log is not None:
         try:
             port = f"--pty{f' --link {args.link}' if args.link else ''}" if args.pty else f"--tcp {args.tcp}"
             settings = f"time scale {config.time_scale}, wire timing {'on' if config.wire_timing else 'off'}"
