@@ -93,7 +93,7 @@ def _run(args: argparse.Namespace, policy: Any) -> int:
                                  args.examples, args.timeout, args.scratch_points, args.restore_mode0,
                                  cli=True)
     except SettingsError as exc:
-        print(f"xac1 conformance: {str(exc).replace('--xac1-', '--')}", file=sys.stderr)
+        print(f"xac1 conformance: {exc.in_cli_words()}", file=sys.stderr)
         return 2
     from .plugin import RUN_KEY, check_outputs
 

@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         settings = _settings(args)
     except SettingsError as exc:
-        return _error(str(exc))
+        return _error(exc.in_cli_words())
     if args.report is not None:
         from xac1_proto.output_file import OutputFileError, check_output
 

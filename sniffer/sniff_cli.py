@@ -96,6 +96,13 @@ def _started_event(end):  # (end: OrderlyEnd) -> threading.Event (imports kept l
     return Started()
 
 
+def _same_port(a: str, b: str) -> bool:
+    """Do two port names name one port (a path through its links; a URL as written)?"""
+    import os
+
+    return a == b or ("://" not in a and "://" not in b and os.path.realpath(a) == os.path.realpath(b))
+
+
 def run(args: argparse.Namespace) -> int:
     import sys
 
@@ -104,6 +111,10 @@ def run(args: argparse.Namespace) -> int:
     from .live import Clock, sniff
     from .taps import PortGone
 
+    if _same_port(args.host_tap, args.device_tap):
+        print(f"error: --host-tap and --device-tap name the same port ({args.device_tap}): each direction "
+              f"needs its own tap (docs/watching.md)", file=sys.stderr)
+        return 2
     with OrderlyEnd("xac1 sniff", "stopping: the summary follows") as end:
         try:
             session = make_session(args, f"xac1 sniff --host-tap {args.host_tap} "
