@@ -233,9 +233,10 @@ def _activate(run: Xac1Run) -> None:
         raise pytest.UsageError(problem)
     run.identity = {k: c.getoption(f"xac1_{k}") for k in ("unit_id", "operator", "station", "note")}
     run.command_line = c.getoption("xac1_command_line")
-    from .stopping import StopPolicy
+    from .stopping import DURING_THE_RUN, StopPolicy
 
     run.policy = StopPolicy.shared("xac1 conformance" if run.settings.cli else "xac1 plugin")  # one a process
+    run.policy.what = DURING_THE_RUN  # from now on the device is restored and the report written
     if c.pluginmanager.get_plugin("terminalreporter") is None:
         from .progress import Progress
 
@@ -544,6 +545,8 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         run.opened = None
     if run.interrupted_by is None and run.policy is not None and run.policy.interrupted_by:
         run.interrupted_by = run.policy.interrupted_by  # a signal during the restore: ignored, but said
+    if run.policy is not None:  # the verdict is decided: a signal from now on cannot change it
+        run.policy.ending("the verdict is decided; the report is being written and the verdict stands")
     from .report import build, terminal_lines, write_file
 
     rep = build(run)

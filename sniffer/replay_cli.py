@@ -167,9 +167,11 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
     from .replay_player import Player, PortFailed
 
     with OrderlyEnd(PROGRAM, "stopping the replay: the device is restored, then the results follow") as end:
+        opened = False
         try:
             try:
                 port, _ = open_port(settings.port)
+                opened = True
             except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
                 return _error(f"cannot open {settings.port}: {exc}; nothing sent", EXIT_DEVICE)
             try:
@@ -180,11 +182,13 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
                 port.close()
                 return _error(f"cannot read the device's points, OUT ports and position first: {exc}",
                               EXIT_DEVICE)
+            end.begin()  # a signal that came before is raised here
         except Interrupted as exc:
             print(f"{PROGRAM}: stopped by {exc.name} before the replay began; nothing of the capture sent",
                   file=sys.stderr)
+            if opened:  # the snapshot only read: nothing to put back
+                port.close()
             return EXIT_EARLY
-        end.begin()
         analyzer = Analyzer(no_answer_timeout=settings.timeout)
         guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge,
                             {n: p.pos for n, p in snap.points.items()}, homed=snap.position is not None)
@@ -206,7 +210,7 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
         outcome = Outcome(player.played, _restore_lines(restored, player.played, snap),
                           None if restored is None else restored.ok, player.stopped or port_failed, failure,
                           end.signal_name)
-    return _conclude(args, script, fmt, outcome, out)
+        return _conclude(args, script, fmt, outcome, out)  # still under the policy: a signal is ignored
 
 
 @dataclass(frozen=True)
