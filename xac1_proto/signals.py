@@ -287,8 +287,12 @@ class OrderlyEnd:
             import threading
 
             if threading.current_thread() is threading.main_thread():
-                signum, self._owed = self._owed, None
-                raise Interrupted(signum)
+                deadline = time.monotonic() + 1.0
+                while self._owed is not None and time.monotonic() < deadline:
+                    time.sleep(0.001)  # the signal sent again: its handler raises it here
+                if self._owed is not None:
+                    signum, self._owed = self._owed, None
+                    raise Interrupted(signum)
         self._begun = True
 
     def ending(self) -> None:
@@ -337,6 +341,10 @@ class OrderlyEnd:
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
+        self._ending = True  # a signal of ours still on its way is taken here, never by the next handler
+        deadline = time.monotonic() + 0.2
+        while self._previous and self._resent and time.monotonic() < deadline:
+            time.sleep(0.001)
         for sig, handler in self._previous.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         self._previous.clear()
