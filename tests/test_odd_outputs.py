@@ -15,11 +15,11 @@ from pathlib import Path
 
 import pytest
 
+from sniffer.io.pcapng_writer import PcapngRecorder
 from xac1_proto.chunk import Chunk
 from xac1_proto.cli import main
 from xac1_proto.output_file import check_output, write_output
 from xac1_proto.recording import RecordingWriter
-from sniffer.io.pcapng_writer import PcapngRecorder
 
 WRITERS: dict[str, Callable[[Path], object]] = {
     "jsonl": lambda p: RecordingWriter(p, source="test"),

@@ -219,7 +219,7 @@ def signalled(command: list[str], delay: float, sig: int, cwd: Path,
     except subprocess.TimeoutExpired:
         proc.kill()
         out, err = proc.communicate()
-        pytest.fail(f"xac1 {' '.join(command)} kept running {timeout} s after a signal at {delay:.3f} s: {err}")
+        pytest.fail(f"xac1 {' '.join(command)} still ran {timeout} s after a signal at {delay:.3f} s: {err}")
     return subprocess.CompletedProcess(command, proc.returncode, out, err)
 
 
@@ -254,7 +254,7 @@ def test_conformance_signalled_at_many_moments_keeps_its_word(tmp_path: Path) ->
     for delay in moments(0.0, 1.2, 10):
         report = tmp_path / "r.md"
         report.unlink(missing_ok=True)
-        done = signalled(["conformance", "--report", str(report)], delay, signal.SIGTERM, tmp_path, timeout=60)
+        done = signalled(["conformance", "--report", str(report)], delay, signal.SIGTERM, tmp_path, 60)
         said = done.stdout + done.stderr
         assert done.returncode == 2 and not BAD.search(said), (delay, said[-2000:])
         assert ("the report follows" in done.stderr) == report.exists(), (delay, said[-2000:])
@@ -283,9 +283,9 @@ def test_replay_signalled_once_its_summary_is_out_keeps_report_and_status(tmp_pa
     report = tmp_path / "r.html"
     slow = SimConfig(time_scale=0, faults=LineFaults(delay=1.0, delay_s=0.03, seed=1))  # restore ~0.2 s
     with serve_tcp(model=DeviceModel(slow, {1: PointData(4, 2, 1, 0x123)})) as sim:
-        proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "replay", str(capture), "--port", sim.url,
-                                 "-f", "jsonl", "--report", str(report)], cwd=ROOT, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL)
+        proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "replay", str(capture), "--port",
+                                 sim.url, "-f", "jsonl", "--report", str(report)], cwd=ROOT, text=True,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
         lines: list[str] = []
 
         def read() -> None:
@@ -329,8 +329,9 @@ def test_conformance_signal_once_the_verdict_is_decided_says_it_stands(tmp_path:
     was deliberately partial, -k)."""
     (tmp_path / "sig_after_verdict.py").write_text(AFTER_THE_VERDICT)
     env = {**os.environ, "PYTHONPATH": str(tmp_path), "PYTEST_PLUGINS": "sig_after_verdict"}
-    done = subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", "-k", "answer_length"], cwd=ROOT,
-                          env=env, capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    done = subprocess.run([sys.executable, "-m", "xac1_proto", "conformance", "-k", "answer_length"],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=120,
+                          stdin=subprocess.DEVNULL)
     assert done.returncode == 4, done.stdout[-2000:] + done.stderr[-2000:]
     assert "SIGTERM ignored: the verdict is decided" in done.stderr and "the verdict stands" in done.stderr
     assert not BAD.search(done.stdout + done.stderr)
