@@ -9,17 +9,24 @@ from __future__ import annotations
 
 import errno
 import os
+import signal
+import subprocess
+import sys
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from conftest import ROOT, xac1_sim
 
 from sniffer.io.pcapng_writer import PcapngRecorder
 from xac1_proto.chunk import Chunk
 from xac1_proto.cli import main
+from xac1_proto.client import Client
 from xac1_proto.output_file import check_output, write_output
 from xac1_proto.recording import RecordingWriter
+from xac1_proto.sim import DeviceModel, SimConfig, serve_tcp
 
 WRITERS: dict[str, Callable[[Path], object]] = {
     "jsonl": lambda p: RecordingWriter(p, source="test"),
@@ -185,3 +192,39 @@ def test_sniff_refuses_one_tap_for_both_directions(tmp_path: Path, capsys, same:
         other.symlink_to(tap)
     assert main(["sniff", "--host-tap", str(tap), "--device-tap", str(other)]) == 2
     assert "--host-tap and --device-tap name the same port" in capsys.readouterr().err
+
+
+# ---- the real commands onto /dev/null ----
+
+@pytest.mark.slow
+def test_proxy_recording_onto_dev_null_ends_in_order(tmp_path: Path) -> None:
+    """``xac1 proxy --record /dev/null`` forwarding, then SIGTERM: exit 0, no traceback (was: an
+    ``os.fsync`` EINVAL traceback and exit 1)."""
+    with serve_tcp(model=DeviceModel(SimConfig(time_scale=0))) as sim:
+        proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "proxy", "--device", sim.url, "--tcp",
+                                 "127.0.0.1:0", "--record", os.devnull], cwd=ROOT, text=True,
+                                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            assert proc.stderr is not None
+            first = proc.stderr.readline()
+            assert "Ctrl-C to stop" in first, first
+            proc.send_signal(signal.SIGTERM)
+            out, err = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+    assert proc.returncode == 0 and "Traceback" not in err, err
+
+
+@pytest.mark.slow
+def test_sim_log_onto_dev_null_serves_past_its_first_sync(tmp_path: Path) -> None:
+    """``xac1 sim --log /dev/null`` answers after the log's once-a-second sync is due, and ends with
+    exit 0 (was: the simulator died at its first byte)."""
+    with xac1_sim("--tcp", "127.0.0.1:0", "--time-scale", "0", "--log", os.devnull) as (proc, url):
+        time.sleep(1.2)  # the log's sync is due at the next byte
+        with Client(url, timeout=2) as client:
+            for _ in range(2):
+                assert client.read_version()
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=15) == 0
