@@ -33,7 +33,7 @@ from conftest import ROOT
 from conformance.stopping import StopPolicy
 from xac1_proto.chunk import Chunk
 from xac1_proto.recording import RecordingWriter
-from xac1_proto.signals import SIGNALS, Interrupted, OrderlyEnd, startup
+from xac1_proto.signals import SIGNALS, Interrupted, OrderlyEnd, running, startup
 from xac1_proto.sim import DeviceModel, LineFaults, PointData, SimConfig, serve_tcp
 
 MODULE = '''
@@ -142,6 +142,7 @@ def test_dispatcher_raises_after_the_unsafe_moment(handlers, signalling_module, 
     """The dispatcher's start-up policy (before a command's): the same, a signal in an import, a
     finalizer or a gc callback is raised once that code has ended."""
     startup()
+    running()  # the command runs (while loading, the process would end at once: exit 2)
     unsafe_moment(kind, signalling_module)
     assert raised_soon().name == "SIGTERM"
 
@@ -150,6 +151,7 @@ def test_a_start_up_signal_swallowed_is_sent_again_for_the_command(handlers) -> 
     """A start-up signal whose ``Interrupted`` some code swallowed (an ``except BaseException``) is sent
     again when the command's policy takes over: the command ends early (was: lost, the whole run ran)."""
     startup()
+    running()  # the command runs (while loading, the process would end at once: exit 2)
     try:
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(1)
@@ -163,6 +165,7 @@ def test_after_the_commands_policy_signals_are_ignored(handlers, capfd) -> None:
     """Once a command's policy is down again (its results being said), the dispatcher ignores a signal
     and says so (was: ``Interrupted``: "stopped by", exit 2 for a finished command)."""
     startup()
+    running()  # the command runs (while loading, the process would end at once: exit 2)
     with OrderlyEnd("xac1 test", "stopping") as end:
         end.begin()
         end.ending()

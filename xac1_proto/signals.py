@@ -23,7 +23,9 @@ Do the ending inside the ``with`` block: outside it the previous handlers are ba
 installed from the main thread; elsewhere (a test calling a command's ``run`` from a thread) the policy
 is inert and ``stop`` is only set by whoever owns it. ``startup()`` is for the ``xac1`` dispatcher:
 until a command installs its ``OrderlyEnd``, any of the three signals raises ``Interrupted`` (at a safe
-point); once a command's policy was in place (``taking_over``), a signal after it was taken down comes
+point; while the command is still being loaded, ``running()`` not yet called, a signal inside an import
+ends the process at once with exit 2, as the entry point does: nothing was opened);
+once a command's policy was in place (``taking_over``), a signal after it was taken down comes
 during the command's last words and is ignored, and said so; ``exiting()`` (the dispatcher, once the
 command returned) ignores them while the process exits. A start-up signal whose ``Interrupted`` some
 code swallowed is sent again when the command's policy takes over, so it is never lost.
@@ -210,9 +212,10 @@ def _install(handler: Any) -> dict[int, Any]:
 
 
 class _Dispatch:
-    """The dispatcher's view of the run: the start-up signal raised (None: none), and whether a
-    command's own policy has taken over."""
+    """The dispatcher's view of the run: still loading (parsing, importing the command: nothing
+    opened), the start-up signal raised (None: none), whether a command's own policy has taken over."""
 
+    loading = False
     raised: int | None = None
     taken_over = False
 
@@ -222,6 +225,9 @@ def _dispatcher_handler(signum: int, frame: FrameType | None) -> None:
         _say(None, f"xac1: {signal_name(signum)} ignored: the command has ended; its results stand")
         return
     if unsafe_point(frame):
+        if _Dispatch.loading:  # nothing opened yet: end at once, as the entry point does
+            _say(None, f"xac1: stopped by {signal_name(signum)}")
+            os._exit(EXIT_EARLY)
         send_later(signum)
         return
     _Dispatch.raised = signum
@@ -232,8 +238,14 @@ def startup() -> None:
     """Until a command installs its own ``OrderlyEnd``: SIGINT, SIGTERM and SIGHUP raise ``Interrupted``
     (the dispatcher turns it into a quiet ``EXIT_EARLY``); after its policy is taken down, they are
     ignored. No-op outside the main thread."""
-    _Dispatch.raised, _Dispatch.taken_over = None, False
+    _Dispatch.raised, _Dispatch.taken_over, _Dispatch.loading = None, False, True
     _install(_dispatcher_handler)
+
+
+def running() -> None:
+    """The dispatcher has loaded the command and runs it: from now on a start-up signal that lands in
+    an import waits for a safe point (the command may have opened something to close)."""
+    _Dispatch.loading = False
 
 
 def taking_over() -> None:

@@ -83,13 +83,14 @@ def _build(argv: list[str]) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run one subcommand; ``argv`` None (the console script) means this is the process's entry: once
     the command has ended, late signals are ignored while the process exits."""
-    from ..signals import EXIT_EARLY, Interrupted, exiting, startup
+    from ..signals import EXIT_EARLY, Interrupted, exiting, running, startup
 
     entry = argv is None
     startup()  # SIGINT, SIGTERM, SIGHUP before a command takes over: a quiet end, exit 2
     argv = sys.argv[1:] if argv is None else argv
     try:
         args = _build(argv).parse_args(argv)
+        running()
         return int(args._run(args) or 0)
     except Interrupted as exc:
         print(f"xac1: stopped by {exc.name}", file=sys.stderr)
