@@ -30,7 +30,7 @@ from typing import IO, Any
 
 from .errors import XAC1Error
 
-__all__ = ["OutputFileError", "can_sync", "check_output", "open_stream", "write_output"]
+__all__ = ["OutputFileError", "can_sync", "check_output", "close_stream", "open_stream", "write_output"]
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
           (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
@@ -173,3 +173,15 @@ def can_sync(f: IO[Any]) -> bool:
     """Does ``os.fsync`` apply to the open file ``f`` (a regular file; not a FIFO, a terminal or
     ``/dev/null``, where it fails)?"""
     return stat.S_ISREG(os.fstat(f.fileno()).st_mode)
+
+
+def close_stream(f: IO[Any]) -> None:
+    """Flush ``f``, fsync it where that applies (``can_sync``), and close it, even when that fails."""
+    if f.closed:
+        return
+    try:
+        f.flush()
+        if can_sync(f):
+            os.fsync(f.fileno())
+    finally:
+        f.close()

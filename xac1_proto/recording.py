@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import IO, Any, Protocol
 
 from .chunk import Chunk
-from .output_file import can_sync, open_stream
+from .output_file import can_sync, close_stream, open_stream
 
 VERSION = 1
 FSYNC_EVERY_S = 1.0
@@ -58,13 +58,7 @@ class RecordingWriter:
         self._write({"type": "note", "t": time.time() if t is None else t, "text": text})
 
     def close(self) -> None:
-        if not self._f.closed:
-            try:
-                self._f.flush()
-                if self._syncable:
-                    os.fsync(self._f.fileno())
-            finally:
-                self._f.close()
+        close_stream(self._f)
 
     def __enter__(self) -> RecordingWriter:
         return self

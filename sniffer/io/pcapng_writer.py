@@ -42,7 +42,7 @@ from typing import IO, Final, Protocol
 
 from xac1_proto import __version__, spec
 from xac1_proto.chunk import HOST, Chunk
-from xac1_proto.output_file import can_sync, open_stream
+from xac1_proto.output_file import can_sync, close_stream, open_stream
 from xac1_proto.recording import RecordingWriter
 
 from ..records import FrameRecord, Record, TimeoutRecord
@@ -177,13 +177,7 @@ class PcapngRecorder:
         self._flush()
 
     def close(self) -> None:
-        if not self._f.closed:
-            try:
-                self._f.flush()
-                if self._syncable:
-                    os.fsync(self._f.fileno())
-            finally:
-                self._f.close()
+        close_stream(self._f)
 
     def __enter__(self) -> PcapngRecorder:
         return self
