@@ -92,6 +92,29 @@ def test_fifo_with_a_reader_is_written(tmp_path: Path, kind: str) -> None:
         os.close(reader)
 
 
+def test_extcap_fifo_waits_for_wiresharks_end(tmp_path: Path) -> None:
+    """The extcap pipe (the format named: ``fmt="pcapng"``) waits for its reader, which Wireshark opens
+    perhaps a moment after starting us, instead of being refused."""
+    from sniffer.io.pcapng_writer import open_recording
+
+    fifo = tmp_path / "extcap.fifo"
+    os.mkfifo(fifo)
+    got: list[object] = []
+    thread = threading.Thread(target=lambda: got.append(open_recording(fifo, "test", fmt="pcapng")),
+                              daemon=True)
+    thread.start()
+    time.sleep(0.2)
+    assert not got  # still waiting: not refused
+    reader = os.open(fifo, os.O_RDONLY)
+    try:
+        thread.join(5)
+        assert got, "the writer never opened"
+        got[0].close()  # type: ignore[attr-defined]
+        assert os.read(reader, 4) == b"\n\r\r\n"  # a pcapng section header
+    finally:
+        os.close(reader)
+
+
 @pytest.mark.parametrize("kind", WRITERS)
 def test_existing_file_that_is_not_a_recording_is_left_alone(tmp_path: Path, kind: str) -> None:
     """An existing file holding something else is refused, untouched (was: replaced without a word)."""

@@ -143,10 +143,12 @@ def _holds_other(path: str | os.PathLike[str], size: int) -> bool:
     return not head.startswith(RECORDING_HEADS)
 
 
-def open_stream(path: str | os.PathLike[str], mode: str = "wb", **kwargs: object) -> IO[Any]:
+def open_stream(path: str | os.PathLike[str], mode: str = "wb", *, wait_for_reader: bool = False,
+                **kwargs: object) -> IO[Any]:
     """The file ``path`` names opened for writing as it comes (``open``'s ``mode`` and keywords), once
     sure the write cannot wait without end nor lose someone's file; ``OSError`` (its ``strerror`` says
-    why, for people) otherwise."""
+    why, for people) otherwise. ``wait_for_reader``: a FIFO whose reader is on its way (Wireshark's
+    extcap pipe) is waited for instead of refused."""
     if not str(path):
         raise OSError(errno.ENOENT, "give the name of a file", str(path))
     try:
@@ -158,8 +160,9 @@ def open_stream(path: str | os.PathLike[str], mode: str = "wb", **kwargs: object
                                     f"it is left alone; give another name, or remove it first", str(path))
     if st is not None and stat.S_ISDIR(st.st_mode):
         raise OSError(errno.EISDIR, "it is a directory; give the name of a file", str(path))
+    flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | (0 if wait_for_reader else os.O_NONBLOCK)
     try:  # non-blocking: a FIFO with no reader fails at once (ENXIO) instead of waiting for one
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NONBLOCK, 0o666)
+        fd = os.open(path, flags, 0o666)
     except OSError as exc:
         if exc.errno == errno.ENXIO:
             raise OSError(errno.ENXIO, "it is a FIFO (named pipe) that nobody reads: writing to it would "

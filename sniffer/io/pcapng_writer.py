@@ -104,9 +104,11 @@ class PcapngRecorder:
 
     ``source`` names the ports and settings (the section comment); a context manager."""
 
-    def __init__(self, path: str | os.PathLike[str], source: str = "", started: float | None = None) -> None:
+    def __init__(self, path: str | os.PathLike[str], source: str = "", started: float | None = None, *,
+                 wait_for_reader: bool = False) -> None:
         self.path = Path(path)
-        self._f: IO[bytes] = open_stream(path)  # never a FIFO nobody reads, nor someone's file
+        # never a FIFO nobody reads (unless its reader is on its way: extcap), nor someone's file
+        self._f: IO[bytes] = open_stream(path, wait_for_reader=wait_for_reader)
         self._syncable = can_sync(self._f)  # not a FIFO (extcap), not /dev/null
         self._last_sync = time.monotonic()
         self._last_t = time.time() if started is None else started
@@ -269,7 +271,8 @@ def open_recording(path: str | os.PathLike[str], source: str = "", analyze: bool
     ``source`` names the tool's ports and settings (the section comment). ``analyze``: the caller has
     no analyzer, so a pcapng recording runs one to carry the verdicts. Raises ``OSError``."""
     if fmt == "pcapng" or (fmt is None and is_pcapng(path)):
-        recorder = PcapngRecorder(path, source=source)
+        # the format named (extcap): a FIFO Wireshark opens its end of, perhaps a moment later
+        recorder = PcapngRecorder(path, source=source, wait_for_reader=fmt is not None)
         return AnalyzingRecorder(recorder) if analyze else recorder
     return JsonlRecorder(path, source=source)
 
