@@ -233,10 +233,9 @@ def _activate(run: Xac1Run) -> None:
         raise pytest.UsageError(problem)
     run.identity = {k: c.getoption(f"xac1_{k}") for k in ("unit_id", "operator", "station", "note")}
     run.command_line = c.getoption("xac1_command_line")
-    from .stopping import DURING_THE_RUN, StopPolicy
+    from .stopping import StopPolicy
 
     run.policy = StopPolicy.shared("xac1 conformance" if run.settings.cli else "xac1 plugin")  # one a process
-    run.policy.what = DURING_THE_RUN  # from now on the device is restored and the report written
     if c.pluginmanager.get_plugin("terminalreporter") is None:
         from .progress import Progress
 
@@ -299,6 +298,17 @@ def _order(item: pytest.Item) -> int:
     if item.get_closest_marker("xac1_last"):
         return 2
     return 1
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection(session: pytest.Session) -> None:
+    """The session has started (pytest now always ends it with ``pytest_sessionfinish``): from here a
+    signal's words say the device is restored and the report follows, as they then are."""
+    run = _run(session.config)
+    if run is not None and run.active and run.policy is not None:
+        from .stopping import DURING_THE_RUN
+
+        run.policy.what = DURING_THE_RUN
 
 
 def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config,

@@ -13,8 +13,9 @@ One policy a process: ``xac1 conformance`` installs one before pytest starts and
 same one (``StopPolicy.shared``), so the first signal is the first whichever layer it lands in, and a
 second one 20 ms later is ignored even once pytest has ended.
 
-Before pytest starts (``xac1 conformance`` only) the first signal's words say that nothing was sent and
-no report follows; the plugin, once it has the run, says the device is restored and the report follows.
+Before pytest's session has started (``xac1 conformance`` only) the first signal's words say that
+nothing was sent yet; from the session's start (the plugin's ``pytest_collection``) they say the device
+is restored and the report follows.
 A raise is never made inside an import, a gc callback or a finalizer (``xac1_proto.signals.unsafe_point``):
 the signal is sent again a moment later, where the run is.
 
@@ -49,7 +50,7 @@ __all__ = ["BEFORE_THE_RUN", "DURING_THE_RUN", "SIGNALS", "Interrupted", "StopPo
 
 # what the first signal does, said on stderr: before pytest started (nothing sent, nothing to report),
 # and once the plugin has the run (the device is restored, the report written)
-BEFORE_THE_RUN = "stopping: nothing was sent; the run ends here, before it began (no report)"
+BEFORE_THE_RUN = "stopping: nothing was sent yet; the run ends before it began"
 DURING_THE_RUN = "stopping: the device is restored, then the report follows"
 
 _in_place: list[StopPolicy] = []  # the installed policies, innermost last (the process's, first)
