@@ -71,9 +71,9 @@ def run(args: argparse.Namespace) -> int:
     if fleet.wanted(args):  # several devices: one child process each (conformance/fleet.py)
         return fleet.run(args)
     args.port = args.port[0] if args.port else None
-    from .stopping import Interrupted, StopPolicy
+    from .stopping import BEFORE_THE_RUN, Interrupted, StopPolicy
 
-    policy = StopPolicy().install()  # until the plugin takes over: a signal ends the run quietly
+    policy = StopPolicy(what=BEFORE_THE_RUN).install()  # until the plugin takes over: a quiet end
     try:
         return _run(args, policy)
     except Interrupted as exc:
@@ -97,7 +97,7 @@ def _run(args: argparse.Namespace, policy: Any) -> int:
                                  args.examples, args.timeout, args.scratch_points, args.restore_mode0,
                                  cli=True, readings=args.readings)
     except SettingsError as exc:
-        print(f"xac1 conformance: {str(exc).replace('--xac1-', '--')}", file=sys.stderr)
+        print(f"xac1 conformance: {exc.in_cli_words()}", file=sys.stderr)
         return 2
     from .plugin import RUN_KEY, check_outputs
 
@@ -121,7 +121,7 @@ def _run(args: argparse.Namespace, policy: Any) -> int:
 
     last = LastWord()
     status = int(pytest.main(pytest_args(args), plugins=[last]))
-    policy.ending("the run has ended; its verdict follows")
+    policy.ending("the run has ended; its verdict stands and follows")
     if last.status is not None:
         status = last.status
     if last.verdict:

@@ -552,6 +552,9 @@ class _Stop:
             yield
             return
         old = {s: signal.signal(s, self) for s in (signal.SIGINT, signal.SIGTERM)}
+        from xac1_proto.signals import taking_over
+
+        taking_over()  # after this, the dispatcher ignores signals while the fleet's results are said
         try:
             yield
         finally:

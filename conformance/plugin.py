@@ -283,8 +283,10 @@ def check_outputs(report: str | None, junit: str | None, flag: Any) -> str | Non
     from .report import kind_of
 
     for name, path, kinds in (("report", report, ("md", "html")), ("junit", junit, ("xml",))):
-        if not path:
+        if path is None:
             continue
+        if not path:
+            return f"{flag(name)} '': give the name of a file"
         p = Path(path)
         if kind_of(p) not in kinds:
             return f"{flag(name)} {path}: the name must end in {' or '.join('.' + k for k in kinds)}"
@@ -308,6 +310,17 @@ def _order(item: pytest.Item) -> int:
     if item.get_closest_marker("xac1_last"):
         return 2
     return 1
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection(session: pytest.Session) -> None:
+    """The session has started (pytest now always ends it with ``pytest_sessionfinish``): from here a
+    signal's words say the device is restored and the report follows, as they then are."""
+    run = _run(session.config)
+    if run is not None and run.active and run.policy is not None:
+        from .stopping import DURING_THE_RUN
+
+        run.policy.what = DURING_THE_RUN
 
 
 def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config,
@@ -576,6 +589,8 @@ def _end_on_the_device(run: Xac1Run, exitstatus: int) -> None:
         run.opened = None
     if run.interrupted_by is None and run.policy is not None and run.policy.interrupted_by:
         run.interrupted_by = run.policy.interrupted_by  # a signal during the restore: ignored, but said
+    if run.policy is not None:  # the verdict is decided: a signal from now on cannot change it
+        run.policy.ending("the verdict is decided; the report is being written and the verdict stands")
 
 
 def _write_reports(c: pytest.Config, rep: Any) -> list[str]:

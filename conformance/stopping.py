@@ -13,6 +13,12 @@ One policy a process: ``xac1 conformance`` installs one before pytest starts and
 same one (``StopPolicy.shared``), so the first signal is the first whichever layer it lands in, and a
 second one 20 ms later is ignored even once pytest has ended.
 
+Before pytest's session has started (``xac1 conformance`` only) the first signal's words say that
+nothing was sent yet; from the session's start (the plugin's ``pytest_collection``) they say the device
+is restored and the report follows.
+A raise is never made inside an import, a gc callback or a finalizer (``xac1_proto.signals.unsafe_point``):
+the signal is sent again a moment later, where the run is.
+
 A raise can be swallowed where Python cannot pass an exception on, so the policy keeps it from being
 lost:
 - during a garbage collection (a gc callback such as hypothesis' own, a finalizer: an I/O object's
@@ -29,7 +35,6 @@ lost (a finalizer that drops exceptions, run by a reference count).
 
 from __future__ import annotations
 
-import _thread
 import contextlib
 import gc
 import os
@@ -39,9 +44,14 @@ import threading
 from types import FrameType
 from typing import Any
 
-from xac1_proto.signals import SIGNALS, Interrupted, signal_name
+from xac1_proto.signals import SIGNALS, Interrupted, send_later, signal_name, taking_over, unsafe_point
 
-__all__ = ["SIGNALS", "Interrupted", "StopPolicy", "signal_name"]
+__all__ = ["BEFORE_THE_RUN", "DURING_THE_RUN", "SIGNALS", "Interrupted", "StopPolicy", "signal_name"]
+
+# what the first signal does, said on stderr: before pytest started (nothing sent, nothing to report),
+# and once the plugin has the run (the device is restored, the report written)
+BEFORE_THE_RUN = "stopping: nothing was sent yet; the run ends before it began"
+DURING_THE_RUN = "stopping: the device is restored, then the report follows"
 
 _in_place: list[StopPolicy] = []  # the installed policies, innermost last (the process's, first)
 
@@ -61,10 +71,10 @@ def _say(text: str) -> None:
 class StopPolicy:
     """First signal: ``Interrupted``; later signals: ignored, and said so (``what`` says what goes on)."""
 
-    def __init__(self, program: str = "xac1 conformance") -> None:
+    def __init__(self, program: str = "xac1 conformance", what: str = DURING_THE_RUN) -> None:
         self.program = program
         self.signum: int | None = None
-        self.what = "stopping: the device is restored, then the report follows"
+        self.what = what
         self.late: int | None = None  # the first signal that came while the ending was under way
         self._previous: dict[int, Any] = {}
         self._previous_unraisable: Any = None
@@ -111,6 +121,7 @@ class StopPolicy:
             sys.unraisablehook = self._unraisable
             gc.callbacks.append(self._gc_phase)
             _in_place.append(self)
+            taking_over()
         return self
 
     def uninstall(self) -> None:
@@ -142,7 +153,7 @@ class StopPolicy:
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         if self._in_flight and signum == self.signum:  # the first signal, sent again by the policy
             self._in_flight.pop()
-            self._deliver()
+            self._deliver(frame)
             return
         if self.signum is not None:
             if self.signum == -1 and self.late is None:
@@ -152,14 +163,15 @@ class StopPolicy:
         self.signum = signum
         _say(f"{self.program}: {signal_name(signum)}: {self.what}")
         self._owed = True
-        self._deliver()
+        self._deliver(frame)
 
-    def _deliver(self) -> None:
+    def _deliver(self, frame: FrameType | None) -> None:
         """Raise the owed ``Interrupted`` here, unless a raise here would be lost: inside the hook that
-        sends the signal again (send it once more), or during a garbage collection (at its end)."""
+        sends the signal again, an import, a gc callback or a finalizer (``unsafe_point``: send it once
+        more, a moment later), or during a garbage collection (at its end)."""
         if not self._owed or self._ended:
             return
-        if self._in_hook:
+        if self._in_hook or unsafe_point(frame):
             self._send_again()
         elif self._collecting:
             self._deferred = True
@@ -191,7 +203,7 @@ class StopPolicy:
         if self._ended or self.signum is None or self.signum < 0:
             return
         self._in_flight.append(None)
-        _thread.start_new_thread(os.kill, (os.getpid(), self.signum))
+        send_later(self.signum)
 
     def _unraisable(self, info: Any) -> None:
         """``sys.unraisablehook``: our ``Interrupted`` swallowed (a ``__del__``, a weakref callback) is

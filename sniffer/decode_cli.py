@@ -128,7 +128,7 @@ def run(args: argparse.Namespace, summaries: list[dict[str, Any]] | None = None)
     report = Report()
     sources: list[Source] = []
     try:
-        if args.report and _all_empty(args.files):  # nothing to detect, but the report says so
+        if args.report is not None and _all_empty(args.files):  # nothing to detect, but the report says so
             return _empty_report(args)
         sources = open_sources(args.files, report)
         fmt, one_sided = choose_format(sources, args, report, "xac1 decode")
@@ -181,7 +181,10 @@ def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
     if any(Path(args.annotate).resolve() == Path(f).resolve() for f in args.files):
         raise FormatError(f"--annotate {args.annotate}: that is an input file; give another name")
 
-    return PcapngRecorder(args.annotate, source=f"xac1 decode {' '.join(args.files)} ({capture.format})")
+    try:
+        return PcapngRecorder(args.annotate, source=f"xac1 decode {' '.join(args.files)} ({capture.format})")
+    except OSError as exc:
+        raise FormatError(f"--annotate {args.annotate}: {exc.strerror or exc}") from None
 
 
 # ---- output ----
@@ -235,7 +238,7 @@ class _Outputs:
         self.tally = Tally() if one_sided else None
         self.annotate = _annotated(args, capture)
         self.html_report = None
-        if args.report:
+        if args.report is not None:
             from .report import SessionReport
             files = [(s.name, capture.format) for s in capture.sources]
             self.html_report = SessionReport.open(args.report, files, timeout)

@@ -116,8 +116,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         settings = _settings(args)
     except SettingsError as exc:
-        return _error(str(exc))
-    if args.report:
+        return _error(exc.in_cli_words())
+    if args.report is not None:
         from xac1_proto.output_file import OutputFileError, check_output
 
         try:  # a report path that cannot take the page is known before anything is sent
@@ -191,9 +191,11 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
 
     started = now()
     with OrderlyEnd(PROGRAM, "stopping the replay: the device is restored, then the results follow") as end:
+        opened = False
         try:
             try:
                 port, _ = open_port(settings.port)
+                opened = True
             except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
                 return _error(f"cannot open {settings.port}: {exc}; nothing sent", EXIT_DEVICE)
             try:
@@ -204,11 +206,13 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
                 port.close()
                 return _error(f"cannot read the device's points, OUT ports and position first: {exc}",
                               EXIT_DEVICE)
+            end.begin()  # a signal that came before is raised here
         except Interrupted as exc:
             print(f"{PROGRAM}: stopped by {exc.name} before the replay began; nothing of the capture sent",
                   file=sys.stderr)
+            if opened:  # the snapshot only read: nothing to put back
+                port.close()
             return EXIT_EARLY
-        end.begin()
         analyzer = Analyzer(no_answer_timeout=settings.timeout, readings=args.readings)
         guard = MotionGuard(settings, lambda: analyzer.conversation.knowledge,
                             {n: p.pos for n, p in snap.points.items()}, homed=snap.position is not None)
@@ -230,7 +234,7 @@ def _replay(args: argparse.Namespace, settings: Settings, script: Script, fmt: s
         outcome = Outcome(player.played, _restore_lines(restored, player.played, snap),
                           None if restored is None else restored.ok, player.stopped or port_failed, failure,
                           end.signal_name, started, dut.version)
-    return _conclude(args, script, fmt, outcome, out)
+        return _conclude(args, script, fmt, outcome, out)  # still under the policy: a signal is ignored
 
 
 @dataclass(frozen=True)
@@ -321,7 +325,7 @@ def _conclude(args: argparse.Namespace, script: Script, fmt: str, outcome: Outco
               f"{STOPPED_LIMIT} answered in the capture got not a byte back, nor did 0RV", file=sys.stderr)
     for line in outcome.restore:
         print(f"{PROGRAM}: restore: {line}", file=sys.stderr)
-    if args.report:
+    if args.report is not None:
         from .replay_report import write_report
 
         try:

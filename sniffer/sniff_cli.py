@@ -67,11 +67,11 @@ def make_session(args: argparse.Namespace, source: str,
     if args.storm_limit < 1:
         raise ValueError(f"--storm-limit must be at least 1, got {args.storm_limit}")
     report = None
-    if args.report:
+    if args.report is not None:
         from .report import SessionReport
         report = SessionReport.open(args.report, [(source, "live")], args.timeout)  # ReportError: ValueError
     recorder = None
-    if args.record:
+    if args.record is not None:
         settings = (f"baud {getattr(args, 'baud', spec.BAUD)}, timeout {args.timeout} s, "
                     f"storm limit {args.storm_limit}")
         recorder = open_recording(args.record, f"{source} ({settings})",
@@ -99,6 +99,13 @@ def _started_event(end):  # (end: OrderlyEnd) -> threading.Event (imports kept l
     return Started()
 
 
+def _same_port(a: str, b: str) -> bool:
+    """Do two port names name one port (a path through its links; a URL as written)?"""
+    import os
+
+    return a == b or ("://" not in a and "://" not in b and os.path.realpath(a) == os.path.realpath(b))
+
+
 def run(args: argparse.Namespace) -> int:
     import sys
 
@@ -107,6 +114,10 @@ def run(args: argparse.Namespace) -> int:
     from .live import Clock, sniff
     from .taps import PortGone
 
+    if _same_port(args.host_tap, args.device_tap):
+        print(f"error: --host-tap and --device-tap name the same port ({args.device_tap}): each direction "
+              f"needs its own tap (docs/watching.md)", file=sys.stderr)
+        return 2
     with OrderlyEnd("xac1 sniff", "stopping: the summary follows") as end:
         try:
             session = make_session(args, f"xac1 sniff --host-tap {args.host_tap} "

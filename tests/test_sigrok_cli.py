@@ -396,3 +396,14 @@ def test_install_into_a_read_only_folder(tmp_path):
         if immutable:
             subprocess.run(["chattr", "-i", str(decoders)], check=True)
         decoders.chmod(0o755)
+
+
+def test_nine_data_bits_is_one_annotation_saying_the_setting_is_wrong(env, tmp_path):
+    """The UART decoder set to 9 data bits hands values above a byte: the decoder says once that the
+    setting is wrong (XA-C1 is 8N1) and raises nothing (was: ``ValueError: bytes must be in range(0,
+    256)`` on every byte)."""
+    vcd = write_vcd(tmp_path / "clean.vcd", SESSIONS["clean"])
+    done = sigrok("-i", str(vcd), "-P", f"{UART}:data_bits=9,xac1", "-A", "xac1", env=env)
+    assert "Error" not in done.stderr and "range(0, 256)" not in done.stderr + done.stdout, done.stderr
+    said = [line for line in done.stdout.splitlines() if "UART decoder set wrong" in line]
+    assert len(said) == 1 and "data_bits=8" in said[0], done.stdout[-2000:]

@@ -6,7 +6,9 @@ per chunk as it was seen: ``{"type":"chunk","t":<unix s or null>,"dir":"host"|"d
 ``{"type":"note","t":<unix s>,"text":"..."}`` (``xac1 sim --replay``: a line not in the capture); readers
 skip them. Each line is written and flushed to the OS as
 soon as the chunk is seen, so a process killed with kill -9 keeps every line written; the file is
-fsynced at least once a second (and on close) against power loss. A chunk longer than
+fsynced at least once a second (and on close) against power loss, when it is a regular file: a FIFO
+or ``/dev/null`` is written without syncing. The file is opened by ``output_file.open_stream``: never a
+FIFO nobody reads, never an existing file that is not a recording. A chunk longer than
 ``DATA_PER_LINE`` bytes is written as several chunk lines of the same time, so every line stays well
 inside ``LONGEST_LINE``, the longest line a reader takes.
 """
@@ -21,6 +23,7 @@ from pathlib import Path
 from typing import IO, Any, Final, Protocol
 
 from .chunk import Chunk
+from .output_file import can_sync, close_stream, open_stream
 
 VERSION = 1
 FSYNC_EVERY_S = 1.0
@@ -34,7 +37,8 @@ class RecordingWriter:
     def __init__(self, path: str | os.PathLike[str], source: str = "",
                  started: float | None = None) -> None:
         self.path = Path(path)
-        self._f: IO[str] = open(self.path, "w", encoding="ascii", buffering=1)  # noqa: SIM115
+        self._f: IO[str] = open_stream(path, "w", encoding="ascii", buffering=1)
+        self._syncable = can_sync(self._f)
         self._last_sync = time.monotonic()
         self._write({"type": "recording", "version": VERSION,
                      "started": time.time() if started is None else started, "source": source})
@@ -43,7 +47,7 @@ class RecordingWriter:
         self._f.write(json.dumps(obj, separators=(",", ":")) + "\n")
         self._f.flush()
         now = time.monotonic()
-        if now - self._last_sync >= FSYNC_EVERY_S:
+        if self._syncable and now - self._last_sync >= FSYNC_EVERY_S:
             os.fsync(self._f.fileno())
             self._last_sync = now
 
@@ -61,10 +65,7 @@ class RecordingWriter:
         self._write({"type": "note", "t": time.time() if t is None else t, "text": text})
 
     def close(self) -> None:
-        if not self._f.closed:
-            self._f.flush()
-            os.fsync(self._f.fileno())
-            self._f.close()
+        close_stream(self._f)
 
     def __enter__(self) -> RecordingWriter:
         return self

@@ -12,11 +12,23 @@ manager that installs one handler for the three and restores the previous handle
 - every *later* signal, and any signal once ``ending()`` was called, is ignored and said so: the
   ending (restore, summary, state file) is never cut short.
 
+A signal is raised as ``Interrupted`` only at a safe point: never inside an import (a class being made
+there would turn it into ``RuntimeError: Error calling __set_name__``), a garbage-collection callback or
+a finalizer (Python drops it there, or prints it as "unraisable"). ``unsafe_point`` looks at the stack
+the signal interrupted; when it is not safe, the raise waits: the signal is sent again a moment later
+(``send_later``), and ``begin()`` raises one still owed, so a signal before the run began never lets it
+begin.
+
 Do the ending inside the ``with`` block: outside it the previous handlers are back. Handlers can only be
 installed from the main thread; elsewhere (a test calling a command's ``run`` from a thread) the policy
 is inert and ``stop`` is only set by whoever owns it. ``startup()`` is for the ``xac1`` dispatcher:
-until a command installs its ``OrderlyEnd``, any of the three signals raises ``Interrupted``; ``exiting()``
-(the dispatcher, once the command returned) ignores them while the process exits.
+until a command installs its ``OrderlyEnd``, any of the three signals raises ``Interrupted`` (at a safe
+point; while the command is still being loaded, ``running()`` not yet called, a signal inside an import
+ends the process at once with exit 2, as the entry point does: nothing was opened);
+once a command's policy was in place (``taking_over``), a signal after it was taken down comes
+during the command's last words and is ignored, and said so; ``exiting()`` (the dispatcher, once the
+command returned) ignores them while the process exits. A start-up signal whose ``Interrupted`` some
+code swallowed is sent again when the command's policy takes over, so it is never lost.
 
 Typical use::
 
@@ -44,6 +56,42 @@ from typing import Any, Final, Protocol, TextIO
 
 SIGNALS: Final = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 EXIT_EARLY: Final = 2  # a signal before the run began: nothing was done
+
+
+_IMPORT_FILES: Final = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
+_FINALIZER_NAMES: Final = ("__del__", "__set_name__")  # dropped, or turned into RuntimeError (3.11)
+
+
+def unsafe_point(frame: FrameType | None) -> str | None:
+    """Why an exception raised where ``frame`` runs would be lost or turned into another error (inside
+    an import, a garbage-collection callback, a finalizer); None at a safe point."""
+    import gc  # built in: nothing is loaded
+
+    callbacks = {getattr(getattr(cb, "__func__", cb), "__code__", None) for cb in gc.callbacks}
+    while frame is not None:
+        code = frame.f_code
+        if code.co_filename in _IMPORT_FILES:
+            return "an import"
+        if code in callbacks:
+            return "a garbage-collection callback"
+        if code.co_name in _FINALIZER_NAMES or (code.co_filename.endswith("weakref.py")
+                                                and code.co_name in ("__call__", "_exitfunc")):
+            return "a finalizer"
+        frame = frame.f_back
+    return None
+
+
+def _send(signum: int, delay: float) -> None:
+    time.sleep(delay)
+    os.kill(os.getpid(), signum)
+
+
+def send_later(signum: int, delay: float = 0.002) -> None:
+    """Send ``signum`` to this process again after ``delay`` seconds, from a bare helper thread
+    (``threading.Thread.start`` waits for the thread, and the signal could land in that wait)."""
+    import _thread
+
+    _thread.start_new_thread(_send, (signum, delay))
 
 
 def signal_name(signum: int) -> str:
@@ -163,14 +211,51 @@ def _install(handler: Any) -> dict[int, Any]:
     return previous
 
 
-def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
+class _Dispatch:
+    """The dispatcher's view of the run: still loading (parsing, importing the command: nothing
+    opened), the start-up signal raised (None: none), whether a command's own policy has taken over."""
+
+    loading = False
+    raised: int | None = None
+    taken_over = False
+
+
+def _dispatcher_handler(signum: int, frame: FrameType | None) -> None:
+    if _Dispatch.taken_over:  # the command's policy is down again: its last words are being said
+        _say(None, f"xac1: {signal_name(signum)} ignored: the command has ended; its results stand")
+        return
+    if unsafe_point(frame):
+        if _Dispatch.loading:  # nothing opened yet: end at once, as the entry point does
+            _say(None, f"xac1: stopped by {signal_name(signum)}")
+            os._exit(EXIT_EARLY)
+        send_later(signum)
+        return
+    _Dispatch.raised = signum
     raise Interrupted(signum)
 
 
 def startup() -> None:
     """Until a command installs its own ``OrderlyEnd``: SIGINT, SIGTERM and SIGHUP raise ``Interrupted``
-    (the dispatcher turns it into a quiet ``EXIT_EARLY``). No-op outside the main thread."""
-    _install(_raise_interrupted)
+    (the dispatcher turns it into a quiet ``EXIT_EARLY``); after its policy is taken down, they are
+    ignored. No-op outside the main thread."""
+    _Dispatch.raised, _Dispatch.taken_over, _Dispatch.loading = None, False, True
+    _install(_dispatcher_handler)
+
+
+def running() -> None:
+    """The dispatcher has loaded the command and runs it: from now on a start-up signal that lands in
+    an import waits for a safe point (the command may have opened something to close)."""
+    _Dispatch.loading = False
+
+
+def taking_over() -> None:
+    """A command's own policy is being installed (``OrderlyEnd``, the conformance suite's
+    ``StopPolicy``): a start-up signal raised before it and swallowed on the way is sent again, now
+    for that policy; signals after it is taken down are ignored by the dispatcher."""
+    _Dispatch.taken_over = True
+    if _Dispatch.raised is not None:
+        signum, _Dispatch.raised = _Dispatch.raised, None
+        send_later(signum, 0)
 
 
 def exiting() -> None:
@@ -200,21 +285,51 @@ class OrderlyEnd:
         self._ending = False
         self._previous: dict[int, Any] = {}
         self._previous_wakeup: int | None = None
+        self._owed: int | None = None  # a signal whose raise waits for a safe point (sent again)
+        self._resent = 0  # signals sent again by this policy, not handled yet
 
     @property
     def signal_name(self) -> str | None:
         return None if self.signum is None else signal_name(self.signum)
 
     def begin(self) -> None:
-        """The run has begun: from now on the first signal ends it in order instead of aborting it."""
+        """The run has begun: from now on the first signal ends it in order instead of aborting it. A
+        signal that came before, whose raise waited for a safe point, is raised here (main thread)."""
+        if self._owed is not None and not self._begun:
+            import threading
+
+            if threading.current_thread() is threading.main_thread():
+                deadline = time.monotonic() + 1.0
+                while self._owed is not None and time.monotonic() < deadline:
+                    time.sleep(0.001)  # the signal sent again: its handler raises it here
+                if self._owed is not None:
+                    signum, self._owed = self._owed, None
+                    raise Interrupted(signum)
         self._begun = True
 
     def ending(self) -> None:
         """The ending is under way: from now on every signal is ignored, and said so."""
         self._ending = True
 
+    def _raise(self, signum: int, frame: FrameType | None) -> None:
+        """Raise ``Interrupted`` here; where that is not safe, once it is (the signal sent again)."""
+        if self._ending:
+            return
+        if unsafe_point(frame):
+            self._owed = signum
+            self._resent += 1
+            send_later(signum)
+            return
+        self._owed = None
+        raise Interrupted(signum)
+
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         name = signal_name(signum)
+        if self._resent and signum == self.signum:  # ours, sent again
+            self._resent -= 1
+            if self._owed is not None:
+                self._raise(signum, frame)
+            return
         if self.signum is not None or self._ending:
             _say(self.err, f"{self.program}: {name} ignored: {self.what}")
             return
@@ -222,19 +337,26 @@ class OrderlyEnd:
         self.stop.set()
         if not self._begun:
             self.early = True
-            raise Interrupted(signum)
+            self._raise(signum, frame)
+            return
         _say(self.err, f"{self.program}: {name}: {self.what}")
         if self.interrupt:
-            raise Interrupted(signum)
+            self._raise(signum, frame)
 
     def __enter__(self) -> OrderlyEnd:
         self._previous = _install(self._handle)
+        if self._previous:
+            taking_over()
         if self._previous:  # the main thread: a signal wakes ``stop.wait()`` even before its handler ran
             self._previous_wakeup = signal.set_wakeup_fd(self.stop.wakeup_fd)
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
+        self._ending = True  # a signal of ours still on its way is taken here, never by the next handler
+        deadline = time.monotonic() + 0.2
+        while self._previous and self._resent and time.monotonic() < deadline:
+            time.sleep(0.001)
         for sig, handler in self._previous.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         self._previous.clear()

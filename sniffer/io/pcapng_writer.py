@@ -45,7 +45,6 @@ option schema) on the live path, and neither would be used to read: the reader s
 from __future__ import annotations
 
 import os
-import stat
 import struct
 import time
 from collections.abc import Iterable, Sequence
@@ -55,6 +54,7 @@ from typing import IO, Final, Protocol
 from xac1_proto import __version__, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 from xac1_proto.framer import MAX_FRAME
+from xac1_proto.output_file import can_sync, close_stream, open_stream
 from xac1_proto.recording import RecordingWriter
 
 from ..records import FrameRecord, Record, TimeoutRecord
@@ -155,10 +155,12 @@ class PcapngRecorder:
 
     ``source`` names the ports and settings (the section comment); a context manager."""
 
-    def __init__(self, path: str | os.PathLike[str], source: str = "", started: float | None = None) -> None:
+    def __init__(self, path: str | os.PathLike[str], source: str = "", started: float | None = None, *,
+                 wait_for_reader: bool = False) -> None:
         self.path = Path(path)
-        self._f: IO[bytes] = open(self.path, "wb")  # noqa: SIM115 - closed by close()
-        self._syncable = stat.S_ISREG(os.fstat(self._f.fileno()).st_mode)  # not a FIFO (extcap)
+        # never a FIFO nobody reads (unless its reader is on its way: extcap), nor someone's file
+        self._f: IO[bytes] = open_stream(path, wait_for_reader=wait_for_reader)
+        self._syncable = can_sync(self._f)  # not a FIFO (extcap), not /dev/null
         self._last_sync = time.monotonic()
         self._last_t = time.time() if started is None else started
         self._last_dir: str | None = None
@@ -258,11 +260,8 @@ class PcapngRecorder:
         if not self._f.closed:
             try:
                 self._write_held()
-                self._f.flush()
-                if self._syncable:
-                    os.fsync(self._f.fileno())
             finally:
-                self._f.close()
+                close_stream(self._f)
 
     def __enter__(self) -> PcapngRecorder:
         return self
@@ -354,7 +353,8 @@ def open_recording(path: str | os.PathLike[str], source: str = "", analyze: bool
     ``source`` names the tool's ports and settings (the section comment). ``analyze``: the caller has
     no analyzer, so a pcapng recording runs one to carry the verdicts. Raises ``OSError``."""
     if fmt == "pcapng" or (fmt is None and is_pcapng(path)):
-        recorder = PcapngRecorder(path, source=source)
+        # the format named (extcap): a FIFO Wireshark opens its end of, perhaps a moment later
+        recorder = PcapngRecorder(path, source=source, wait_for_reader=fmt is not None)
         return AnalyzingRecorder(recorder) if analyze else recorder
     return JsonlRecorder(path, source=source)
 

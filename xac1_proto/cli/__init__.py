@@ -104,7 +104,7 @@ def _complete(argv: list[str]) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run one subcommand; ``argv`` None (the console script) means this is the process's entry: once
     the command has ended, late signals are ignored while the process exits."""
-    from ..signals import EXIT_EARLY, Interrupted, exiting, startup
+    from ..signals import EXIT_EARLY, Interrupted, exiting, running, startup
 
     entry = argv is None
     startup()  # SIGINT, SIGTERM, SIGHUP before a command takes over: a quiet end, exit 2
@@ -113,6 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         _complete(argv)
     try:
         args = _build(argv).parse_args(argv)
+        running()
         return int(args._run(args) or 0)
     except Interrupted as exc:
         print(f"xac1: stopped by {exc.name}", file=sys.stderr)

@@ -24,7 +24,12 @@ SIMULATOR_TIMEOUT_S = 0.2
 
 
 class SettingsError(ValueError):
-    """A bad option value or combination; the message says which and what is expected."""
+    """A bad option value or combination; the message says which and what is expected (named as the
+    pytest plugin's options are: ``--xac1-safe-range``)."""
+
+    def in_cli_words(self) -> str:
+        """The message as ``xac1 conformance`` and ``xac1 replay`` name their options (``--safe-range``)."""
+        return str(self).replace("--xac1-", "--")
 
 
 def parse_position(text: str, what: str) -> int:

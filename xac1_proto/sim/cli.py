@@ -207,7 +207,7 @@ class Run:
         if args.estop:
             self.model.set_estop(True)
         self.panel = _open_panel(*panel_at) if panel_at else None
-        if args.log:
+        if args.log is not None:
             port = f"--pty{f' --link {args.link}' if args.link else ''}" if args.pty else f"--tcp {args.tcp}"
             settings = (f"time scale {self.config.time_scale}, "
                         f"wire timing {'on' if self.config.wire_timing else 'off'}")

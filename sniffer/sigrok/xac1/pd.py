@@ -81,6 +81,7 @@ class Decoder(srd.Decoder):
         self.byte: list[tuple[int, int] | None] = [None, None]  # per rxtx: (value, DATA's start sample)
         self.error: list[str | None] = [None, None]  # per rxtx: the UART error of the byte under way
         self.device_last: float | None = None  # time of the latest device byte
+        self.wide_said = False  # the UART decoder gives values above a byte (9 data bits): said once
 
     def start(self) -> None:
         self.out_ann = self.register(srd.OUTPUT_ANN)
@@ -94,7 +95,13 @@ class Decoder(srd.Decoder):
 
     def decode(self, ss: int, es: int, data: list[Any]) -> None:
         ptype, rxtx, pdata = data
-        if ptype == "DATA":
+        if ptype == "DATA" and pdata[0] > 0xFF:  # the UART decoder set to 9 data bits: no XA-C1 byte
+            if not self.wide_said:
+                self.wide_said = True
+                self.put(ss, es, self.out_ann, [Ann.UART_ERROR, [
+                    f"UART decoder set wrong: a {pdata[0].bit_length()}-bit value; XA-C1 is 8N1 (set the "
+                    f"uart decoder's data_bits=8)", "UART set wrong: XA-C1 is 8N1"]])
+        elif ptype == "DATA":
             self.byte[rxtx] = (pdata[0], ss)
         elif ptype == "INVALID STOPBIT":
             self.error[rxtx] = FRAMING_ERROR
