@@ -166,6 +166,37 @@ def test_a_real_unit_that_falls_silent_is_reported_as_found():
 
 
 @pytest.mark.slow
+def test_a_silence_is_shrunk_with_the_operator_power_cycling_the_unit(tmp_path):
+    """On a unit that is not the built-in simulator, with a terminal to ask on, a silence is shrunk by
+    asking the operator to switch the unit off and on before each re-run. The operator here is the test:
+    it power-cycles the simulator through its control channel (``power``), waits for its word, then
+    presses Enter. The finding is shrunk to one line, and every prompt was answered."""
+    import pexpect
+
+    out = tmp_path / "fuzz.jsonl"
+    with xac1_sim("--tcp", "0", "--time-scale", "0", "--deviation", "hang-on-long-line") as (sim, url):
+        assert sim.stdin is not None and sim.stdout is not None
+        command = (f"{sys.executable} -m xac1_proto fuzz --port {url} --cases 80 --timeout 0.1 --seed 3 "
+                   f"--format jsonl --max-findings 1 --shrink-budget 12 > {out}")
+        child = pexpect.spawn("/bin/sh", ["-c", command], encoding="utf-8", timeout=60, cwd=str(ROOT))
+        asked = 0
+        while child.expect(["switch the unit off and on again", pexpect.EOF]) == 0:
+            asked += 1
+            sim.stdin.write("power\n")
+            sim.stdin.flush()
+            while "power-cycled" not in sim.stdout.readline():  # the control channel's word
+                pass
+            child.sendline("")
+        child.close()
+    assert child.exitstatus == 1, child.before
+    objs = _jsonl(out.read_text())
+    finding = next(o for o in objs if o["type"] == "finding")
+    assert asked >= 1
+    assert finding["kind"] == "silence" and finding["shrunk"], finding
+    assert len(finding["input"]) == 1, finding
+
+
+@pytest.mark.slow
 def test_a_real_unit_is_shrunk_without_a_power_cycle_and_never_written_where_it_cannot_be_restored():
     """On a unit that is not the built-in simulator a state finding is shrunk by re-running after an
     alarm reset; no case wrote a point (none held data, so none could be written back), so point 1's

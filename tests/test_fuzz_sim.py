@@ -50,6 +50,24 @@ def test_late_after_errors():
     assert [o.due for o in outs[2:]] == [LATE_AFTER_ERRORS_S] * 3
 
 
+def test_a_power_cycle_clears_a_struck_robustness_fault():
+    """A power cycle (``DeviceModel.power_cycle``, the control channel's ``power``) ends a hang and late
+    answers, as switching a real controller off and on would; the fault stays switched on and strikes
+    again on the next long line."""
+    hung = _model("hang-on-long-line", hang_bytes="10")
+    _answers(hung, b"x" * 11 + b"\r\n")
+    assert _answers(hung, b"0RV\r\n") == []
+    hung.power_cycle()
+    assert _answers(hung, b"0%C\r\n") == [b"0%C00\r\n"]
+    _answers(hung, b"x" * 11 + b"\r\n")
+    assert _answers(hung, b"0%C\r\n") == []
+    late = _model("late-after-errors", flood_errors="3")
+    late.receive(b"\n\n\n", 0.0)
+    assert [o.due for o in late.receive(b"0%C\r\n", 0.0)] == [LATE_AFTER_ERRORS_S]
+    late.power_cycle()
+    assert [o.due for o in late.receive(b"0%C\r\n", 0.0)] == [0.0]
+
+
 @pytest.mark.parametrize("name", sorted(ROBUSTNESS))
 def test_robustness_faults_are_off_by_default_and_named(name):
     """Each robustness fault is switched on by name (and documented); a default simulator has none."""

@@ -408,9 +408,11 @@ class DeviceModel:
     def power_cycle(self) -> list[Output]:
         """Switch the unit off and on: the power-on state (not homed, position unknown, mode 0, OUT ports
         off, nothing latched but a pressed stop input); a move, a partial line and unsent answers are
-        lost. The position table is kept (it is the controller's memory), and so is what the bench set:
-        the stop input, line faults, pending faults, deviations."""
+        lost, and a robustness fault that struck (a hang, late answers) clears. The position table is kept
+        (it is the controller's memory), and so is what the bench set: the stop input, line faults, pending
+        faults, deviations."""
         self.homed, self.position, self.mode, self.outputs, self.alarm = False, None, 0, 0, None
+        self.hung, self.late_s, self._errors_in_row = False, 0.0, 0  # a struck robustness fault clears
         self.busy_until = float("-inf")
         self._segments = []
         self.reset_line()
