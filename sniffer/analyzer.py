@@ -12,8 +12,9 @@ records of docs/output.md's JSON lines schema when the caller wants records: ``F
 a clock.
 
 One path: ``feed`` (a chunk; the live sniffer) and ``feed_many`` (a batch of chunks in one loop; decode)
-both run each chunk through ``_step``. Records are made only where the output needs them: ``feed_many``
-without a list to fill (``xac1 decode --format summary``) counts the verdicts and makes none.
+both run each chunk through the one loop body of ``feed_many``. Records are made only where the output
+needs them: ``feed_many`` without a list to fill (``xac1 decode --format summary``) counts the verdicts
+and makes none.
 
 Captures without time (raw files, interceptty without ``-T``, sigrok without a sample rate): order is all
 there is; the engine's docstring says what it then concludes.
@@ -71,61 +72,50 @@ class Analyzer:
         exception, Ctrl-C included, loses none of the chunks taken); ``out`` None: no records are made,
         the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
 
-        Each chunk: time passes to its time (``_tick``), its bytes are framed by its line's framer (a
-        device line's partial frame keeps the time it began: an answer that starts in time is in time),
-        and its events are judged (``_judge``). The usual chunk, one whole frame (``Framer.take_frame``),
-        goes to the engine at once: the frame's arrival passes time to it (the engine's events tick; a
-        device frame arriving in pieces meanwhile is passed to ``_tick`` first)."""
+        Each chunk, in one loop body: its bytes are framed by its line's framer and judged, time passing
+        to its time first. The usual chunk, one whole frame with nothing pending on its line, the framer
+        takes at once (``Framer.take_frame``) and the engine passes time to its arrival itself: time is
+        passed here first only while a device line is arriving (it may have stalled). Any other chunk:
+        time passes to its time, then the framer buffers and cuts its bytes (a device line's partial
+        frame keeps the time it began: an answer that starts in time is in time)."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        c = self.conversation
-        host_frame, device_frame, judged = c.host_frame, c.device_frame, self._judged
-        framers = self._framers
-        host = framers[HOST]
+        framers, judge, tick = self._framers, self._judge, self._tick
+        device_framer = framers[DEVICE]
         taken = size = 0
         try:
             for chunk in islice(chunks, limit):
                 taken += 1
-                t, direction, data = chunk.t, chunk.dir, chunk.data
+                t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
                 framer = framers.get(direction)
-                if chunk.error is None and framer is not None and framer.take_frame(data) is not None:
-                    if framer is host:
-                        if self._device_since is not None and t is not None:
-                            self._tick(t)  # an answer arriving in pieces: its start keeps its window open
-                        judged += host_frame(data, t, t)
-                    else:
-                        self._device_last = t
-                        judged += device_frame(data, t, t)
-                    continue  # (a whole frame is at most MAX_FRAME bytes: a batch of them stays small)
                 if framer is None:
                     raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
-                self._step(framer, direction, t, data, chunk.error)
+                if error and data:
+                    self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
+                offset = framer.take_frame(data)
+                if t is not None and (offset is None or self._device_since is not None):
+                    tick(t)
+                if offset is not None:
+                    events: list[FrameBytes | Junk] = [FrameBytes(bytes(data), offset, t, t)]
+                elif framer is device_framer and data:
+                    pending_before = framer.pending
+                    events = framer.feed(data, t)
+                    if not framer.pending:
+                        self._device_since = None
+                    elif not pending_before:
+                        self._device_since = t  # else keep the older time: never expire too early
+                else:
+                    events = framer.feed(data, t)
+                if framer is device_framer and data:
+                    self._device_last = t
+                if events:
+                    judge(direction, events)
                 size += len(data)
                 if size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
                     break
         finally:
             self._emit(out)
         return taken
-
-    def _step(self, framer: Framer, direction: Direction, t: float | None, data: bytes,
-              error: str | None) -> None:
-        """One chunk, in general: time passes to ``t``, then the chunk's bytes are framed and judged."""
-        if t is not None:
-            self._tick(t)
-        if error and data:
-            self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
-        if framer is self._framers[DEVICE] and data:
-            pending_before = framer.pending
-            events = framer.feed(data, t)
-            self._device_last = t
-            if not framer.pending:
-                self._device_since = None
-            elif not pending_before:
-                self._device_since = t  # else keep the older time: never expire too early
-        else:
-            events = framer.feed(data, t)
-        if events:
-            self._judge(direction, events)
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
