@@ -93,7 +93,7 @@ class Analyzer:
                 if error and data:
                     self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
                 offset = framer.take_frame(data)
-                if t is not None and (offset is None or self._device_since is not None):
+                if t is not None:  # time passes first, whatever the cut: a closed window is closed
                     tick(t)
                 if offset is not None:
                     events: list[FrameBytes | Junk] = [FrameBytes(bytes(data), offset, t, t)]
