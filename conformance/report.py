@@ -359,56 +359,101 @@ def _scratch_text(run: Any) -> str:
 
 # ---- terminal ----
 
-def terminal_lines(rep: Report) -> list[tuple[str, str]]:
+Lines = list[tuple[str, str]]  # (line, style) pairs
+
+
+def terminal_lines(rep: Report) -> Lines:
     """What the operator reads at the end of a run, as (line, style) pairs: style is '', 'good', 'bad',
-    'warn' or 'bold'. Nothing is cut: long lines wrap on the terminal."""
-    out: list[tuple[str, str]] = [(f"firmware {rep.version} on {rep.port}  |  {rep.date}", "bold")]
-    out += [(f"{k}: {v}", "") for k, v in rep.unit]
-    for r in rep.failed:
-        out.append(("", ""))
-        out.append((f"{r.verdict} {r.check}: {r.rule}", "bad"))
-        out.append((f"  {r.message}", ""))
-        for p in r.probes[:6]:
-            out.append((f"    {p.show()}", ""))
-    tested = bool(rep.passed or rep.failed)  # an early stop tested nothing: no blocks about checks
-    if tested:
-        out.append(("", ""))
-        out.append(("by rule group:", "bold"))
-        for g in rep.groups:
-            parts = [f"{g.passed} passed"] + [f"{n} {w}" for n, w in ((g.failed, "failed"),
-                     (g.skipped + g.not_run, "not run"), (g.manual, "manual")) if n]
-            style = {FAIL: "bad", SKIP: "warn", PASS: "good"}[g.verdict]
-            out.append((f"  {g.verdict:<4}  {g.title}: {', '.join(parts)}", style))
-    if rep.skip_reasons and tested:
-        out.append(("", ""))
-        out.append(("checks not run (never a failure, but not an acceptance either); to run them:", "bold"))
-        for why, names in rep.skip_reasons:
-            out.append((f"  {why}", "warn"))
-            out.append((f"    {_grouped([(n, '') for n in names])}", ""))
-    for r in rep.manual:
-        out.append((f"manual step ({r.check}): {r.message}", "warn"))
-    if rep.infos:
-        out.append(("", ""))
-        checks = sum(1 for r in rep.junit if r.info)
-        out.append((f"information: {_records(len(rep.infos), checks)} (docs/protocol.md is silent here; "
-                    f"never a failure):", "bold"))
-        out += [(f"  {i.topic}: {i.observed}", "") for i in rep.infos]
-    if rep.timing and rep.timing_meaningful:
-        out.append(("", ""))
-        out.append(("answer turnaround (ms)   count     min  median     max", "bold"))
-        out += [(f"  {h:<22} {n:>5} {lo * 1e3:>7.1f} {med * 1e3:>7.1f} {hi * 1e3:>7.1f}", "")
-                for h, n, lo, med, hi in rep.timing]
-    out.append(("", ""))
-    out += [(f"safety: {line}", "") for line in rep.safety]
-    out += [(f"safety note: {line}", "warn") for line in rep.safety_warnings]
-    out += [(f"safety PROBLEM: {line}", "bad") for line in rep.safety_problems]
-    out += [(f"safety NOT RESTORED: {line}", "bad") for line in rep.safety_unverified]
-    if rep.not_run_checks and tested:
-        out.append((f"not run: {_grouped(rep.not_run_checks)}", "warn"))
-    if rep.abort:
-        out.append((f"run stopped: {rep.abort}", "bad"))
+    'warn' or 'bold'. Nothing is cut: long lines wrap on the terminal. An early stop tested nothing:
+    it gets no block about checks."""
+    tested = bool(rep.passed or rep.failed)
+    out: Lines = []
+    for section in _SECTIONS_OF_ANY_RUN if not tested else _SECTIONS_OF_A_TESTED_RUN:
+        out += section(rep)
     out.append((rep.verdict_line, "good" if rep.accepted else "bad"))
     return out
+
+
+def _head_and_failures(rep: Report) -> Lines:
+    """The unit and the run's head line, then each failed check with its first probes."""
+    out: Lines = [(f"firmware {rep.version} on {rep.port}  |  {rep.date}", "bold")]
+    out += [(f"{k}: {v}", "") for k, v in rep.unit]
+    for r in rep.failed:
+        out += [("", ""), (f"{r.verdict} {r.check}: {r.rule}", "bad"), (f"  {r.message}", "")]
+        out += [(f"    {p.show()}", "") for p in r.probes[:6]]
+    return out
+
+
+_GROUP_STYLE = {FAIL: "bad", SKIP: "warn", PASS: "good"}
+
+
+def _groups(rep: Report) -> Lines:
+    """One line per rule group: its verdict and counts."""
+    out: Lines = [("", ""), ("by rule group:", "bold")]
+    for g in rep.groups:
+        parts = [f"{g.passed} passed"] + [f"{n} {w}" for n, w in ((g.failed, "failed"),
+                 (g.skipped + g.not_run, "not run"), (g.manual, "manual")) if n]
+        out.append((f"  {g.verdict:<4}  {g.title}: {', '.join(parts)}", _GROUP_STYLE[g.verdict]))
+    return out
+
+
+def _skips(rep: Report) -> Lines:
+    """The checks not run, grouped by why, with what would run them."""
+    if not rep.skip_reasons:
+        return []
+    out: Lines = [("", ""), ("checks not run (never a failure, but not an acceptance either); to run them:",
+                              "bold")]
+    for why, names in rep.skip_reasons:
+        out += [(f"  {why}", "warn"), (f"    {_grouped([(n, '') for n in names])}", "")]
+    return out
+
+
+def _manual_steps(rep: Report) -> Lines:
+    """The steps only a person can do."""
+    return [(f"manual step ({r.check}): {r.message}", "warn") for r in rep.manual]
+
+
+def _information(rep: Report) -> Lines:
+    """What the device did where docs/protocol.md is silent."""
+    if not rep.infos:
+        return []
+    checks = sum(1 for r in rep.junit if r.info)
+    head = (f"information: {_records(len(rep.infos), checks)} (docs/protocol.md is silent here; "
+            f"never a failure):")
+    return [("", ""), (head, "bold")] + [(f"  {i.topic}: {i.observed}", "") for i in rep.infos]
+
+
+def _turnaround(rep: Report) -> Lines:
+    """The answer turnaround per command, when it means something (a real line, not a fast simulator)."""
+    if not (rep.timing and rep.timing_meaningful):
+        return []
+    return [("", ""), ("answer turnaround (ms)   count     min  median     max", "bold")] + [
+        (f"  {h:<22} {n:>5} {lo * 1e3:>7.1f} {med * 1e3:>7.1f} {hi * 1e3:>7.1f}", "")
+        for h, n, lo, med, hi in rep.timing]
+
+
+def _safety(rep: Report) -> Lines:
+    """What the run did to the device and whether it was put back."""
+    return ([("", "")] + [(f"safety: {line}", "") for line in rep.safety]
+            + [(f"safety note: {line}", "warn") for line in rep.safety_warnings]
+            + [(f"safety PROBLEM: {line}", "bad") for line in rep.safety_problems]
+            + [(f"safety NOT RESTORED: {line}", "bad") for line in rep.safety_unverified])
+
+
+def _not_run(rep: Report) -> Lines:
+    """The checks collected but never run (the run stopped first)."""
+    return [(f"not run: {_grouped(rep.not_run_checks)}", "warn")] if rep.not_run_checks else []
+
+
+def _abort(rep: Report) -> Lines:
+    """Why the run stopped, when it stopped early."""
+    return [(f"run stopped: {rep.abort}", "bad")] if rep.abort else []
+
+
+# The terminal summary's sections in order; the blocks about checks only when a check ran.
+_SECTIONS_OF_A_TESTED_RUN: Final = (_head_and_failures, _groups, _skips, _manual_steps, _information,
+                                    _turnaround, _safety, _not_run, _abort)
+_SECTIONS_OF_ANY_RUN: Final = (_head_and_failures, _manual_steps, _information, _turnaround, _safety, _abort)
 
 
 def _records(records: int, checks: int) -> str:
