@@ -432,7 +432,7 @@ def _turnaround(rep: Report) -> Lines:
         for h, n, lo, med, hi in rep.timing]
 
 
-def _safety(rep: Report) -> Lines:
+def _safety_lines(rep: Report) -> Lines:
     """What the run did to the device and whether it was put back."""
     return ([("", "")] + [(f"safety: {line}", "") for line in rep.safety]
             + [(f"safety note: {line}", "warn") for line in rep.safety_warnings]
@@ -452,8 +452,9 @@ def _abort(rep: Report) -> Lines:
 
 # The terminal summary's sections in order; the blocks about checks only when a check ran.
 _SECTIONS_OF_A_TESTED_RUN: Final = (_head_and_failures, _groups, _skips, _manual_steps, _information,
-                                    _turnaround, _safety, _not_run, _abort)
-_SECTIONS_OF_ANY_RUN: Final = (_head_and_failures, _manual_steps, _information, _turnaround, _safety, _abort)
+                                    _turnaround, _safety_lines, _not_run, _abort)
+_SECTIONS_OF_ANY_RUN: Final = (_head_and_failures, _manual_steps, _information, _turnaround, _safety_lines,
+                               _abort)
 
 
 def _records(records: int, checks: int) -> str:
