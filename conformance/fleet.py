@@ -628,26 +628,10 @@ def run(args: argparse.Namespace) -> int:
         except FleetError as exc:
             print(f"xac1 conformance: {exc}", file=sys.stderr)
             return 2
-        devices = []
-        for t, stem in zip(ts, file_names(ts), strict=True):
-            report = files / f"{stem}.{args.report_format}" if out_dir else None
-            junit = files / f"{stem}.xml"
-            argv = [sys.executable, "-m", "xac1_proto", "conformance", "--port", t.url, *common,
-                    "--junitxml", str(junit)]
-            if report:
-                argv += ["--report", str(report)]
-            if t.unit and _supports(args, "--unit-id"):
-                argv += ["--unit-id", t.unit]
-            if _supports(args, "--history-fleet"):
-                argv += ["--history-fleet", fleet_id]
-            devices.append(Device(t, stem, report, junit, files / f"{stem}.log" if out_dir else None, argv))
-        serials = _usb_serials()
-        for d in devices:
-            if "://" not in d.target.url or d.target.url.lower().startswith("hwgrep://"):
-                with contextlib.suppress(FleetError):
-                    d.unit = serials.get(_resolve(d.target.url))
-        stop = _Stop()
-        interrupted = _watch(devices, console, stop)
+        devices = [_device(args, t, stem, files, out_dir, common, fleet_id)
+                   for t, stem in zip(ts, file_names(ts), strict=True)]
+        _name_usb_units(devices)
+        interrupted = _Watch(devices, console, _Stop()).run()
         for d in devices:
             if d.log:
                 d.log.write_bytes(bytes(d.output))
@@ -658,11 +642,7 @@ def run(args: argparse.Namespace) -> int:
             for check, rule in d.failed if d.verdict == NOT_CONFORM else []:
                 console.print(f"  {d.target.url}: FAIL {check}: {rule}", markup=False)
         if out_dir:
-            command = shlex.join(["xac1", "conformance", *(a for t in ts if t.where == "--port"
-                                                          for a in ("--port", t.url)),
-                                  *(["--ports", args.ports] if args.ports else []), *common,
-                                  "--report-dir", str(args.report_dir)])
-            pages = write_pages(out_dir, devices, status, started, command)
+            pages = write_pages(out_dir, devices, status, started, _fleet_command(args, ts, common))
             console.print(f"reports: {', '.join(str(p) for p in pages)} and one .{args.report_format}, .xml, "
                           f".log a device in {out_dir}", markup=False)
         if interrupted:
@@ -675,47 +655,100 @@ def run(args: argparse.Namespace) -> int:
     return status
 
 
-def _watch(devices: Sequence[Device], console: Any, stop: _Stop) -> bool:
-    """Start every child, show their progress until all have ended; True when interrupted."""
-    from rich.live import Live
+def _fleet_command(args: argparse.Namespace, ts: Sequence[Target], common: list[str]) -> str:
+    """The command line that repeats this fleet run, for its pages."""
+    ports = [a for t in ts if t.where == "--port" for a in ("--port", t.url)]
+    ports += ["--ports", args.ports] if args.ports else []
+    return shlex.join(["xac1", "conformance", *ports, *common, "--report-dir", str(args.report_dir)])
 
-    sel = selectors.DefaultSelector()
-    forwarded_at: float | None = None
-    told_repeat = False
-    live = Live(live_table(devices, time.monotonic()), console=console, refresh_per_second=4,
-                transient=False) if console.is_terminal else None
-    with stop.installed(), (live or contextlib.nullcontext()):
-        for d in devices:
-            _start(d, sel)
-            if live is None:
-                console.print(f"{d.target.url}: started ({d.stem})", markup=False)
-        while any(d.running for d in devices):
-            _pump(sel, 0.1)
-            now = time.monotonic()
-            for d in devices:
-                if d.running and d.streams == 0 and d.proc is not None and d.proc.poll() is not None:
-                    d.t_end, d.status = now, d.proc.returncode
-                    if live is None:
-                        console.print(f"{d.target.url}: {d.last_line()} ({_seconds(d.elapsed(now))})",
-                                      markup=False)
-            if stop.signum is not None and forwarded_at is None:
-                forwarded_at = now
-                console.print("xac1 conformance: stopping: each device finishes its restore "
-                              f"(at most {STOP_GRACE_S:g} s)", markup=False)
-                for d in devices:
-                    if d.running and d.proc is not None:
-                        with contextlib.suppress(ProcessLookupError):
-                            d.proc.send_signal(signal.SIGINT)
-            if stop.repeated and not told_repeat:
-                told_repeat = True
-                console.print("xac1 conformance: still waiting for the devices to be restored", markup=False)
-            if forwarded_at is not None and now - forwarded_at > STOP_GRACE_S:
-                for d in devices:
-                    if d.running and d.proc is not None:
-                        d.killed = True
-                        d.proc.kill()
-                forwarded_at = float("inf")
-            if live is not None:
-                live.update(live_table(devices, now))
-    sel.close()
-    return stop.signum is not None
+
+def _device(args: argparse.Namespace, t: Target, stem: str, files: Path, out_dir: Path | None,
+            common: list[str], fleet_id: str) -> Device:
+    """One device's child run: its command line and the files it writes (the report and log only
+    when kept in a report directory; the JUnit file always, the fleet reads its verdicts there). The
+    unit id (from a ports file) and the fleet id go to a plugin that knows them."""
+    report = files / f"{stem}.{args.report_format}" if out_dir else None
+    junit = files / f"{stem}.xml"
+    argv = [sys.executable, "-m", "xac1_proto", "conformance", "--port", t.url, *common,
+            "--junitxml", str(junit)]
+    argv += ["--report", str(report)] if report else []
+    argv += ["--unit-id", t.unit] if t.unit and _supports(args, "--unit-id") else []
+    argv += ["--history-fleet", fleet_id] if _supports(args, "--history-fleet") else []
+    return Device(t, stem, report, junit, files / f"{stem}.log" if out_dir else None, argv)
+
+
+def _name_usb_units(devices: Sequence[Device]) -> None:
+    """Name each device on a local serial port by its USB adapter's serial number, when it has one."""
+    serials = _usb_serials()
+    for d in devices:
+        if "://" not in d.target.url or d.target.url.lower().startswith("hwgrep://"):
+            with contextlib.suppress(FleetError):
+                d.unit = serials.get(_resolve(d.target.url))
+
+
+class _Watch:
+    """The children from start to end: their progress shown (a live table on a terminal, a line a
+    device otherwise), a stop forwarded once to each, and whoever still runs STOP_GRACE_S later killed."""
+
+    def __init__(self, devices: Sequence[Device], console: Any, stop: _Stop) -> None:
+        from rich.live import Live
+
+        self.devices, self.console, self.stop = devices, console, stop
+        self.forwarded_at: float | None = None
+        self.told_repeat = False
+        self.live = Live(live_table(devices, time.monotonic()), console=console, refresh_per_second=4,
+                         transient=False) if console.is_terminal else None
+
+    def run(self) -> bool:
+        """Start every child, show their progress until all have ended; True when interrupted."""
+        sel = selectors.DefaultSelector()
+        with self.stop.installed(), (self.live or contextlib.nullcontext()):
+            for d in self.devices:
+                _start(d, sel)
+                self._say(f"{d.target.url}: started ({d.stem})")
+            while any(d.running for d in self.devices):
+                _pump(sel, 0.1)
+                now = time.monotonic()
+                self._note_the_ended(now)
+                self._pass_on_a_stop(now)
+                self._kill_after_the_grace(now)
+                if self.live is not None:
+                    self.live.update(live_table(self.devices, now))
+        sel.close()
+        return self.stop.signum is not None
+
+    def _say(self, line: str) -> None:
+        """A line for a console without the live table (the table shows it otherwise)."""
+        if self.live is None:
+            self.console.print(line, markup=False)
+
+    def _note_the_ended(self, now: float) -> None:
+        """Each child whose process has ended and whose output is all read: its end time and status."""
+        for d in self.devices:
+            if d.running and d.streams == 0 and d.proc is not None and d.proc.poll() is not None:
+                d.t_end, d.status = now, d.proc.returncode
+                self._say(f"{d.target.url}: {d.last_line()} ({_seconds(d.elapsed(now))})")
+
+    def _pass_on_a_stop(self, now: float) -> None:
+        """The fleet's first SIGINT/SIGTERM forwarded once to every child as SIGINT (each restores its
+        device); a repeated one answered with a line, nothing more."""
+        if self.stop.signum is not None and self.forwarded_at is None:
+            self.forwarded_at = now
+            self.console.print("xac1 conformance: stopping: each device finishes its restore "
+                               f"(at most {STOP_GRACE_S:g} s)", markup=False)
+            for d in self.devices:
+                if d.running and d.proc is not None:
+                    with contextlib.suppress(ProcessLookupError):
+                        d.proc.send_signal(signal.SIGINT)
+        if self.stop.repeated and not self.told_repeat:
+            self.told_repeat = True
+            self.console.print("xac1 conformance: still waiting for the devices to be restored", markup=False)
+
+    def _kill_after_the_grace(self, now: float) -> None:
+        """STOP_GRACE_S after the stop was forwarded, kill every child still running (once)."""
+        if self.forwarded_at is not None and now - self.forwarded_at > STOP_GRACE_S:
+            for d in self.devices:
+                if d.running and d.proc is not None:
+                    d.killed = True
+                    d.proc.kill()
+            self.forwarded_at = float("inf")

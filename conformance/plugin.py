@@ -74,6 +74,34 @@ class Xac1Run:
         self.exit_status: int | None = None
         self.write_problems: list[str] = []  # output files that could not be written
 
+    def cannot_go_on(self, item: pytest.Item, report: pytest.TestReport,
+                     excinfo: pytest.ExceptionInfo[BaseException]) -> None:
+        """A check met a device abort (no answer, an emergency stop, a lost port): note why, stop the
+        session, and give a check cut short no verdict, nor any record it made."""
+        from xac1_proto.dut.device import NoAnswer, PortLost, StoppedAnswering
+
+        self.abort = self.abort or str(excinfo.value)
+        self.no_answer = self.no_answer or excinfo.errisinstance(NoAnswer)
+        self.stopped = self.stopped or excinfo.errisinstance((StoppedAnswering, PortLost))
+        item.session.shouldstop = "xac1: the run cannot go on (the XA-C1 conformance summary above says why)"
+        if report.when != "setup" and item.nodeid not in self.interrupted:
+            # Cut short (or its last exchange met the silence).
+            self.interrupted.append(item.nodeid)
+            self.results = [r for r in self.results if r.nodeid != item.nodeid]
+            if self.dut is not None:
+                self.dut.infos = [i for i in self.dut.infos if all(p.test != item.nodeid for p in i.probes)]
+
+    def record(self, item: pytest.Item, report: pytest.TestReport, call: pytest.CallInfo[None]) -> None:
+        """A check's verdict from one of its phases (a failed teardown replaces its call's verdict),
+        kept and shown in the JUnit file as its rule, verdict and first probes."""
+        from .results import result_from
+
+        self.results = [r for r in self.results if r.nodeid != item.nodeid or report.when != "teardown"]
+        result = result_from(item, report, call, self.dut)
+        self.results.append(result)
+        report.user_properties += [("rule", result.rule), ("verdict", result.verdict)]
+        report.user_properties += [("evidence", p.show()) for p in result.probes[:4]]
+
 
 RUN_KEY = pytest.StashKey[Xac1Run]()
 EXIT_INCOMPLETE = 3  # the run could not go on: no port, no answer, emergency stop...
@@ -502,29 +530,14 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     run = _run(item.config)
     if run is None or not run.active or not is_check(item):
         return report
-    from xac1_proto.dut.device import DeviceAbort, NoAnswer, PortLost, StoppedAnswering
-
-    from .results import result_from
+    from xac1_proto.dut.device import DeviceAbort
 
     if call.excinfo is not None and call.excinfo.errisinstance(DeviceAbort):
-        run.abort = run.abort or str(call.excinfo.value)
-        run.no_answer = run.no_answer or call.excinfo.errisinstance(NoAnswer)
-        run.stopped = run.stopped or call.excinfo.errisinstance((StoppedAnswering, PortLost))
-        item.session.shouldstop = "xac1: the run cannot go on (the XA-C1 conformance summary above says why)"
-        if report.when != "setup" and item.nodeid not in run.interrupted:
-            # Cut short (or its last exchange met the silence): no verdict, nor any record it made.
-            run.interrupted.append(item.nodeid)
-            run.results = [r for r in run.results if r.nodeid != item.nodeid]
-            if run.dut is not None:
-                run.dut.infos = [i for i in run.dut.infos if all(p.test != item.nodeid for p in i.probes)]
+        run.cannot_go_on(item, report, call.excinfo)
         return report  # not a verdict on this check: the run stopped (the report says why)
     if report.when == "call" or (report.when == "setup" and not report.passed) or (
             report.when == "teardown" and report.failed):
-        run.results = [r for r in run.results if r.nodeid != item.nodeid or report.when != "teardown"]
-        result = result_from(item, report, call, run.dut)
-        run.results.append(result)
-        report.user_properties += [("rule", result.rule), ("verdict", result.verdict)]
-        report.user_properties += [("evidence", p.show()) for p in result.probes[:4]]
+        run.record(item, report, call)
     return report
 
 

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..client import Client
+    from ..console.commands import Plan
 
 EXIT_OK, EXIT_PORT = 0, 4
 
@@ -101,61 +102,88 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_line(client: Client, line: str, ask: Callable[[str], str], yes: bool) -> bool:
     """Run one console line; False when the console should end."""
-    from ..console.commands import UsageError, help_text, parse_line
+    from ..console.commands import UsageError, parse_line
+
+    try:
+        plan = parse_line(line)
+        if plan is None:
+            return True
+        if plan.local in _LOCAL:
+            return _LOCAL[plan.local](client, plan)
+    except UsageError as exc:
+        print(f"error: {exc}")
+        return True
+    raws = [plan.raw] if plan.raw is not None else [f.to_bytes() for f in plan.frames]
+    if plan.moves and not yes and not _move_confirmed(raws, ask):
+        print("not sent")
+        return True
+    if all(_send(client, raw) for raw in raws) and plan.local == "status":
+        print(f"  communication errors in a row: {client.comm_errors_in_row}"
+              f"{' (HALTED: type rearm)' if client.halted else ''}; last known position: "
+              f"{'unknown' if client.position is None else client.position}")
+    return True
+
+
+def _help(client: Client, plan: Plan) -> bool:
+    """``help [command]``: the commands, or one command's form."""
+    from ..console.commands import help_text
+
+    print(help_text(plan.topic))
+    return True
+
+
+def _rearm(client: Client, plan: Plan) -> bool:
+    """``rearm``: send commands again after the client halted on communication errors."""
+    client.rearm()
+    print("rearmed: commands will be sent again")
+    return True
+
+
+def _quit(client: Client, plan: Plan) -> bool:
+    """``quit``: the console ends."""
+    return False
+
+
+# The commands the console answers itself, sending nothing; each says whether the console goes on.
+_LOCAL: dict[str | None, Callable[[Client, Plan], bool]] = {"help": _help, "rearm": _rearm, "quit": _quit}
+
+
+def _move_confirmed(raws: list[bytes], ask: Callable[[str], str]) -> bool:
+    """Whether the operator answers yes to the frames that move the axis (the end of input is a no)."""
+    try:
+        shown = " ".join(r.decode("latin-1").strip() for r in raws)
+        answer = ask(f"this moves the axis ({shown}); go ahead? [y/N] ")
+    except EOFError:
+        answer = ""
+    return answer.strip().lower() in ("y", "yes")
+
+
+def _send(client: Client, raw: bytes) -> bool:
+    """Send one frame and show it and its answer; False when the rest of the line is not sent (no
+    answer, the client halted, an alarm, with a hint of what to do). PortLost when the port went away."""
     from ..console.show import answer_lines, error_line, port_problem, sent_lines
     from ..errors import AlarmError, CommunicationHalted, ResponseTimeout, XAC1Error
     from ..exchange import answer_or_raise
     from ..spec import ALARM_ESTOP
 
+    print("\n".join(sent_lines(raw)), flush=True)
     try:
-        plan = parse_line(line)
-        if plan is not None and plan.local == "help":
-            print(help_text(plan.topic))
-            return True
-    except UsageError as exc:
-        print(f"error: {exc}")
-        return True
-    if plan is None:
-        return True
-    if plan.local == "quit":
+        ex = client.transact(raw)
+    except (ResponseTimeout, CommunicationHalted) as exc:
+        print(error_line(exc))
+        if isinstance(exc, CommunicationHalted):
+            print("  check the equipment and the cable, then type rearm")
         return False
-    if plan.local == "rearm":
-        client.rearm()
-        print("rearmed: commands will be sent again")
-        return True
-    raws = [plan.raw] if plan.raw is not None else [f.to_bytes() for f in plan.frames]
-    if plan.moves and not yes:
-        try:
-            shown = " ".join(r.decode("latin-1").strip() for r in raws)
-            answer = ask(f"this moves the axis ({shown}); go ahead? [y/N] ")
-        except EOFError:
-            answer = ""
-        if answer.strip().lower() not in ("y", "yes"):
-            print("not sent")
-            return True
-    for raw in raws:
-        print("\n".join(sent_lines(raw)), flush=True)
-        try:
-            ex = client.transact(raw)
-        except (ResponseTimeout, CommunicationHalted) as exc:
-            print(error_line(exc))
-            if isinstance(exc, CommunicationHalted):
-                print("  check the equipment and the cable, then type rearm")
-            return True
-        except OSError as exc:  # pyserial's SerialException too: the port went away
-            raise PortLost(port_problem(exc)) from None
-        print("\n".join(answer_lines(ex)), flush=True)
-        try:
-            answer_or_raise(ex)
-        except AlarmError as exc:
-            hint = ("release the emergency stop input, then reset and home" if exc.code == ALARM_ESTOP
-                    else "type reset to clear it")
-            print(f"  ({hint})")
-            return True
-        except XAC1Error:
-            return True
-    if plan.local == "status":
-        print(f"  communication errors in a row: {client.comm_errors_in_row}"
-              f"{' (HALTED: type rearm)' if client.halted else ''}; last known position: "
-              f"{'unknown' if client.position is None else client.position}")
+    except OSError as exc:  # pyserial's SerialException too: the port went away
+        raise PortLost(port_problem(exc)) from None
+    print("\n".join(answer_lines(ex)), flush=True)
+    try:
+        answer_or_raise(ex)
+    except AlarmError as exc:
+        hint = ("release the emergency stop input, then reset and home" if exc.code == ALARM_ESTOP
+                else "type reset to clear it")
+        print(f"  ({hint})")
+        return False
+    except XAC1Error:
+        return False
     return True
