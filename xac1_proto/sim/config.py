@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -227,6 +227,44 @@ def _bool(text: str) -> bool:
     raise ValueError(f"expected 0 or 1, got {text!r}")
 
 
+def _stroke(text: str) -> tuple[int, int]:
+    """``LO:HI``, each decimal or 0x-hex."""
+    lo, _, hi = text.partition(":")
+    return parse_int(lo), parse_int(hi)
+
+
+def _seed(text: str) -> int:
+    """A signed decimal integer."""
+    if not text.strip().lstrip("-").isdigit():
+        raise ValueError(f"expected an integer, got {text!r}")
+    return int(text)
+
+
+def _whole(text: str) -> int:
+    """A whole decimal number."""
+    if not text.strip().isdigit():
+        raise ValueError(f"expected a whole number, got {text!r}")
+    return int(text)
+
+
+def _alarm_code(text: str) -> int:
+    """A hex alarm code."""
+    return int(text, 16)
+
+
+# Option -> (the config's or its line faults' field it sets, the parser of its text). Options not
+# named here: ``deviation`` (collected), ``*_alarm`` (hex codes) and the 0/1 switches.
+_CONFIG_FIELDS: Final[dict[str, tuple[str, Callable[[str], object]]]] = {
+    "time_scale": ("time_scale", parse_time_scale), "version": ("version", str),
+    "turnaround": ("turnaround_s", parse_ms), "stroke": ("stroke", _stroke),
+    "hang_bytes": ("hang_bytes", _whole), "flood_errors": ("flood_errors", _whole),
+}
+_FAULT_FIELDS: Final[dict[str, tuple[str, Callable[[str], object]]]] = {
+    "seed": ("seed", _seed), "noise": ("corrupt", parse_probability), "drop": ("drop", parse_probability),
+    "delay": ("delay_s", parse_ms), "delay_p": ("delay", parse_probability),
+}
+
+
 def config_from_options(options: Mapping[str, str | Iterable[str]],
                         base: SimConfig | None = None) -> SimConfig:
     """A config from string options (see ``OPTIONS``); raises ValueError naming the bad option."""
@@ -241,40 +279,18 @@ def config_from_options(options: Mapping[str, str | Iterable[str]],
         value = values[-1]
         try:
             if name == "deviation":
-                for v in values:
-                    deviations.update(x.strip() for x in v.split(",") if x.strip())
-            elif name == "time_scale":
-                changes["time_scale"] = parse_time_scale(value)
-            elif name == "version":
-                changes["version"] = value
-            elif name == "turnaround":
-                changes["turnaround_s"] = parse_ms(value)
-            elif name == "stroke":
-                lo, _, hi = value.partition(":")
-                changes["stroke"] = (parse_int(lo), parse_int(hi))
-            elif name == "seed":
-                if not value.strip().lstrip("-").isdigit():
-                    raise ValueError(f"expected an integer, got {value!r}")
-                faults["seed"] = int(value)
-            elif name == "noise":
-                faults["corrupt"] = parse_probability(value)
-            elif name == "drop":
-                faults["drop"] = parse_probability(value)
-            elif name == "delay":
-                faults["delay_s"] = parse_ms(value)
-                faults.setdefault("delay", 1.0)
-            elif name == "delay_p":
-                faults["delay"] = parse_probability(value)
-            elif name in ("hang_bytes", "flood_errors"):
-                if not value.strip().isdigit():
-                    raise ValueError(f"expected a whole number, got {value!r}")
-                changes[name] = int(value)
-            elif name.endswith("_alarm"):
-                changes[name] = int(value, 16)
+                deviations.update(x.strip() for v in values for x in v.split(",") if x.strip())
+            elif name in _FAULT_FIELDS:
+                key, parse = _FAULT_FIELDS[name]
+                faults[key] = parse(value)
             else:
-                changes[name] = _bool(value)
+                switch = (name, _alarm_code if name.endswith("_alarm") else _bool)
+                key, parse = _CONFIG_FIELDS.get(name, switch)
+                changes[key] = parse(value)
         except ValueError as exc:
             raise ValueError(f"simulator option {name}={value!r}: {exc}") from None
+    if "delay_s" in faults:
+        faults.setdefault("delay", 1.0)  # a delay without its probability delays every answer
     if faults:
         changes["faults"] = dataclasses.replace(cfg.faults, **faults)  # type: ignore[arg-type]
     changes["deviations"] = frozenset(deviations)
