@@ -9,6 +9,7 @@ the suite writes only points it can write back, plus those named with ``--xac1-s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypeVar
 
 from xac1_proto import spec
 from xac1_proto.rules import DEFAULT_READINGS, READINGS, Readings
@@ -88,6 +89,41 @@ def is_simulator(port: str) -> bool:
     return port.startswith(SIMULATOR_SCHEME)
 
 
+_N = TypeVar("_N", int, float)
+
+
+def parse_readings(name: str | None) -> Readings:
+    """The severity of our readings named by ``--xac1-readings`` (None: the default, notices)."""
+    chosen = next((r for r in READINGS if r == (name or DEFAULT_READINGS)), None)
+    if chosen is None:
+        raise SettingsError(f"--xac1-readings: expected one of {', '.join(READINGS)}, got {name!r}")
+    return chosen
+
+
+def _positive(value: _N | None, flag: str, expected: str) -> _N | None:
+    """``value`` when left out or above 0; a SettingsError naming ``flag`` otherwise."""
+    if value is not None and value <= 0:
+        raise SettingsError(f"{flag}: expected {expected}, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class _PortKind:
+    """What a run assumes of its port for the options left out: the built-in simulator may always move
+    (in SIMULATOR_SAFE_RANGE), is always fresh and answers at once; a real device moves only inside a
+    range the user gives."""
+
+    safe_range: tuple[int, int] | None
+    always_moves: bool
+    always_fresh: bool
+    examples: int  # random command sequences
+    timeout: float  # seconds for an answer
+
+
+_SIMULATOR = _PortKind(SIMULATOR_SAFE_RANGE, True, True, examples=30, timeout=SIMULATOR_TIMEOUT_S)
+_REAL_DEVICE = _PortKind(None, False, False, examples=10, timeout=spec.NO_ANSWER_TIMEOUT_S)
+
+
 @dataclass(frozen=True)
 class Settings:
     """The options of one run, checked for consistency by ``make``."""
@@ -113,26 +149,19 @@ class Settings:
              cli: bool = False, readings: str | None = None) -> Settings:
         port = port or DEFAULT_PORT
         sim = is_simulator(port)
-        rng = parse_safe_range(safe_range) if safe_range else None
-        if rng is None and sim:
-            rng = SIMULATOR_SAFE_RANGE
-        motion = allow_motion or sim
+        kind = _SIMULATOR if sim else _REAL_DEVICE
+        rng = parse_safe_range(safe_range) if safe_range else kind.safe_range
+        motion = allow_motion or kind.always_moves
         if motion and rng is None:
             raise SettingsError("--xac1-allow-motion on a real device needs --xac1-safe-range LO:HI: the "
                                 "positions the actuator may be moved to (e.g. --xac1-safe-range 0:0x1000)")
-        if examples is not None and examples < 1:
-            raise SettingsError(f"--xac1-examples: expected a positive count, got {examples}")
-        if timeout is not None and timeout <= 0:
-            raise SettingsError(f"--xac1-timeout: expected seconds > 0, got {timeout}")
-        chosen = next((r for r in READINGS if r == (readings or DEFAULT_READINGS)), None)
-        if chosen is None:
-            raise SettingsError(f"--xac1-readings: expected one of {', '.join(READINGS)}, got {readings!r}")
-        return cls(port=port, simulator=sim, motion=motion, fresh=fresh or sim, safe_range=rng,
-                   seed=DEFAULT_SEED if seed is None else seed, examples=examples or (30 if sim else 10),
-                   timeout=timeout or (SIMULATOR_TIMEOUT_S if sim else spec.NO_ANSWER_TIMEOUT_S),
-                   time_scale=_sim_time_scale(port) if sim else 1.0,
+        return cls(port=port, simulator=sim, motion=motion, fresh=fresh or kind.always_fresh, safe_range=rng,
+                   seed=DEFAULT_SEED if seed is None else seed,
+                   examples=_positive(examples, "--xac1-examples", "a positive count") or kind.examples,
+                   timeout=_positive(timeout, "--xac1-timeout", "seconds > 0") or kind.timeout,
+                   readings=parse_readings(readings), time_scale=_sim_time_scale(port) if sim else 1.0,
                    scratch_points=parse_points(scratch_points) if scratch_points else (),
-                   restore_mode0=restore_mode0, cli=cli, readings=chosen)
+                   restore_mode0=restore_mode0, cli=cli)
 
     def flag(self, name: str) -> str:
         """How the user spells option ``name`` (``allow-motion``) in the command they ran."""
