@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from markupsafe import Markup
@@ -30,25 +30,42 @@ def _day(s: StoredRun) -> str:
 
 def figures(runs: Sequence[StoredRun]) -> dict[str, Any]:
     """The page's figures (plotly's JSON form), by the id of the element that draws each."""
+    days = sorted({_day(s) for s in runs})
+    return {figure_id: draw(runs, days) for figure_id, draw in _FIGURES.items()}
+
+
+def _runs_a_day(runs: Sequence[StoredRun], days: list[str]) -> Any:
+    """Runs a day, stacked: those that conformed and those that did not."""
     import plotly.graph_objects as go
 
-    days = sorted({_day(s) for s in runs})
     ok = Counter(_day(s) for s in runs if s.run.verdict == CONFORMS)
     bad = Counter(_day(s) for s in runs if s.run.verdict != CONFORMS)
-    per_day = go.Figure([go.Bar(x=days, y=[ok[d] for d in days], name="conforms", marker_color="#2ca02c"),
-                         go.Bar(x=days, y=[bad[d] for d in days], name="did not conform (any other verdict)",
-                                marker_color="#d62728")],
-                        layout={"title": {"text": "runs a day"}, "barmode": "stack", "height": 360,
-                                "xaxis": {"type": "category", "title": {"text": "day"}},
-                                "yaxis": {"title": {"text": "runs"}}})
+    return go.Figure([go.Bar(x=days, y=[ok[d] for d in days], name="conforms", marker_color="#2ca02c"),
+                      go.Bar(x=days, y=[bad[d] for d in days], name="did not conform (any other verdict)",
+                             marker_color="#d62728")],
+                     layout={"title": {"text": "runs a day"}, "barmode": "stack", "height": 360,
+                             "xaxis": {"type": "category", "title": {"text": "day"}},
+                             "yaxis": {"title": {"text": "runs"}}})
+
+
+def _pass_rate_per_firmware(runs: Sequence[StoredRun], days: list[str]) -> Any:
+    """The share of runs that conformed, per firmware version (0RV's answer)."""
+    import plotly.graph_objects as go
+
     rows = firmware_rows(runs)
-    per_firmware = go.Figure([go.Bar(x=[r["firmware"] for r in rows], y=[100 * r["pass_rate"] for r in rows],
-                                     text=[f"{r['conforming']} of {r['runs']}" for r in rows],
-                                     marker_color="#1f77b4", name="pass rate")],
-                             layout={"title": {"text": "pass rate per firmware version"}, "height": 360,
-                                     "xaxis": {"type": "category", "title": {"text": "firmware (0RV)"}},
-                                     "yaxis": {"title": {"text": "% of runs that conformed"},
-                                               "range": [0, 100]}})
+    return go.Figure([go.Bar(x=[r["firmware"] for r in rows], y=[100 * r["pass_rate"] for r in rows],
+                             text=[f"{r['conforming']} of {r['runs']}" for r in rows],
+                             marker_color="#1f77b4", name="pass rate")],
+                     layout={"title": {"text": "pass rate per firmware version"}, "height": 360,
+                             "xaxis": {"type": "category", "title": {"text": "firmware (0RV)"}},
+                             "yaxis": {"title": {"text": "% of runs that conformed"}, "range": [0, 100]}})
+
+
+def _failed_rules_a_day(runs: Sequence[StoredRun], days: list[str]) -> Any:
+    """Failed checks a day, stacked per rule: the TOP_RULES most failed one colour each, the rest summed
+    as "other rules"."""
+    import plotly.graph_objects as go
+
     failures = Counter(rule for s in runs for rule in s.run.failed_rules)
     top = [rule for rule, _n in failures.most_common(TOP_RULES)]
     traces = []
@@ -57,11 +74,15 @@ def figures(runs: Sequence[StoredRun]) -> dict[str, Any]:
                         if r == rule or (rule == "other rules" and r not in top))
         if count:
             traces.append(go.Bar(x=days, y=[count[d] for d in days], name=rule))
-    per_rule = go.Figure(traces, layout={"title": {"text": "failed checks a day, per rule"}, "height": 400,
-                                         "barmode": "stack", "xaxis": {"type": "category"},
-                                         "yaxis": {"title": {"text": "runs that failed it"}},
-                                         "legend": {"orientation": "h", "y": -0.3}})
-    return {"per-day": per_day, "per-firmware": per_firmware, "per-rule": per_rule}
+    return go.Figure(traces, layout={"title": {"text": "failed checks a day, per rule"}, "height": 400,
+                                     "barmode": "stack", "xaxis": {"type": "category"},
+                                     "yaxis": {"title": {"text": "runs that failed it"}},
+                                     "legend": {"orientation": "h", "y": -0.3}})
+
+
+# The page's figures by the id of the element that draws each, in the page's order.
+_FIGURES: dict[str, Callable[[Sequence[StoredRun], list[str]], Any]] = {
+    "per-day": _runs_a_day, "per-firmware": _pass_rate_per_firmware, "per-rule": _failed_rules_a_day}
 
 
 def _script_json(obj: Any) -> Markup:
