@@ -142,28 +142,79 @@ def _open(path: str, name: str, baud: int) -> ReadOnlyPort:
     return ReadOnlyPort(path, name, baud)
 
 
+class _Taps:
+    """The receive-only taps of a sniff: all opened at start (or none: PortGone for the caller), read
+    when ready, and a tap that goes away closed and said; with ``reconnect`` it is tried again every
+    RETRY_S while the other goes on."""
+
+    def __init__(self, paths: dict[Direction, str], baud: int, reconnect: bool,
+                 say: Callable[[str], None]) -> None:
+        self.paths, self.baud, self.reconnect, self.say = paths, baud, reconnect, say
+        self.ports: dict[Direction, ReadOnlyPort | None] = {}
+        self.retry_at: dict[Direction, float] = {}
+        for d, path in paths.items():
+            try:
+                self.ports[d] = _open(path, d, baud)
+            except PortGone:  # at start: the caller reports it
+                self.close()
+                raise
+
+    def reopen_due(self) -> None:
+        """Open again each tap that went away whose retry time has come."""
+        for d, port in self.ports.items():
+            if port is None and time.monotonic() >= self.retry_at[d]:
+                try:
+                    self.ports[d] = _open(self.paths[d], d, self.baud)
+                    self.say(f"{d} tap {self.paths[d]}: back, resuming")
+                except PortGone:
+                    self.retry_at[d] = time.monotonic() + RETRY_S
+
+    def ready(self) -> list[tuple[Direction, ReadOnlyPort]]:
+        """The open taps with bytes to read, after waiting at most TICK_S for one (when none is open,
+        after TICK_S)."""
+        live = {p.fileno(): (d, p) for d, p in self.ports.items() if p is not None}
+        if not live:
+            time.sleep(TICK_S)
+            return []
+        return [live[fd] for fd in select.select(list(live), [], [], TICK_S)[0]]
+
+    def read(self, ready: list[tuple[Direction, ReadOnlyPort]], now: float) -> tuple[list[Chunk], bool]:
+        """What the ready taps hold, as chunks seen at ``now`` (framing-error marks kept), and whether a
+        tap went away meanwhile."""
+        got: list[Chunk] = []
+        gone = False
+        for d, port in ready:
+            try:
+                got += [Chunk(now, d, data, error) for data, error in port.read()]
+            except PortGone as exc:
+                port.close()
+                self.say(f"error: {exc}; everything seen so far is kept"
+                         + (f"; waiting for it to come back (every {RETRY_S} s)" if self.reconnect else ""))
+                self.ports[d] = None
+                self.retry_at[d] = time.monotonic() + RETRY_S
+                gone = True
+        return got, gone
+
+    def close(self) -> None:
+        """Close every tap still open."""
+        for port in self.ports.values():
+            if port is not None:
+                port.close()
+
+
 def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: int = spec.BAUD,
           reconnect: bool = False, stop: StopRequest | None = None,
           started: threading.Event | None = None, err: IO[str] | None = None) -> int:
     """Read both taps until ``stop`` (or Ctrl-C in the caller); 0, or 1 when a tap went away for good.
     Never writes to a tap. The caller closes the session."""
     stop = stop or threading.Event()
-    ports: dict[Direction, ReadOnlyPort | None] = {}
-    retry_at: dict[Direction, float] = {}
 
     def say(text: str) -> None:
         if err is not None:
             err.write(text + "\n")
             err.flush()
 
-    for d, path in paths.items():
-        try:
-            ports[d] = _open(path, d, baud)
-        except PortGone:  # at start: the caller reports it
-            for port in ports.values():
-                if port is not None:
-                    port.close()
-            raise
+    taps = _Taps(paths, baud, reconnect, say)
     order = CausalOrder(session.chunk, lambda: session.analyzer.waiting,
                         lambda: session.analyzer.expecting_answer)
     if started is not None:
@@ -171,36 +222,12 @@ def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: 
     say(f"sniff: host tap {paths.get('host')}, device tap {paths.get('device')}; Ctrl-C to stop")
     try:
         while not stop.is_set():
-            for d, port in ports.items():
-                if port is None and time.monotonic() >= retry_at[d]:
-                    try:
-                        ports[d] = _open(paths[d], d, baud)
-                        say(f"{d} tap {paths[d]}: back, resuming")
-                    except PortGone:
-                        retry_at[d] = time.monotonic() + RETRY_S
-            live = {p.fileno(): (d, p) for d, p in ports.items() if p is not None}
+            taps.reopen_due()
             # Everything a tap held when this poll began is read by it: held chunks and missed answers
             # are judged at that time, so a sniffer slowed down (a busy machine) invents nothing.
             polled, polled_mono = clock.now(), time.monotonic()
-            if live:
-                ready = select.select(list(live), [], [], TICK_S)[0]
-            else:
-                time.sleep(TICK_S)
-                ready = []
-            now = clock.now()
-            got: list[Chunk] = []
-            gone = False
-            for fd in ready:
-                d, port = live[fd]
-                try:
-                    got += [Chunk(now, d, data, error) for data, error in port.read()]
-                except PortGone as exc:
-                    port.close()
-                    say(f"error: {exc}; everything seen so far is kept"
-                        + (f"; waiting for it to come back (every {RETRY_S} s)" if reconnect else ""))
-                    ports[d] = None
-                    retry_at[d] = time.monotonic() + RETRY_S
-                    gone = True
+            ready = taps.ready()
+            got, gone = taps.read(ready, clock.now())
             order.push_poll(got, time.monotonic())
             if gone and not reconnect:
                 return 1
@@ -209,6 +236,4 @@ def sniff(paths: dict[Direction, str], session: Session, clock: Clock, *, baud: 
         return 0
     finally:
         order.flush()
-        for port in ports.values():
-            if port is not None:
-                port.close()
+        taps.close()

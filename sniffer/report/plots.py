@@ -74,16 +74,26 @@ def _layout(agg: SessionAggregator, title: str, height: int, **more: Any) -> dic
 def timeline(agg: SessionAggregator) -> go.Figure:
     """Host and device lanes, each exchange a line from command to answer, violations as coloured
     marks (on the lane of the side at fault) with their code; clicking a point shows its record."""
-    traces: list[go.Scatter] = []
+    traces = _exchange_lines(agg) + _record_points(agg) + _violation_marks(agg)
+    layout = _layout(agg, "Timeline: host and device lanes (point at a mark for its code, click it for its "
+                          "bytes)", 460,
+                     yaxis={"tickvals": [0, 1], "ticktext": ["device", "host"], "range": [-1.2, 2.2],
+                            "fixedrange": True, "zeroline": False})
+    return go.Figure(data=traces, layout=layout)
+
+
+def _exchange_lines(agg: SessionAggregator) -> list[go.Scatter]:
+    """The timeline's lines from lane to lane: each exchange from its command to its answer (grey), each
+    unanswered command to its deadline (red, dotted; a trace only when there is one)."""
+    scale = 1000.0 if agg.timed else 1.0
     ex_x: list[float | None] = []
     ex_y: list[float | None] = []
     for ex in agg.exchanges:
         ex_x += [ex["from"], ex["to"], None]
         ex_y += [LANE["host"], LANE["device"], None]
-    scale = 1000.0 if agg.timed else 1.0
-    traces.append(go.Scatter(x=[None if v is None else v * scale for v in ex_x], y=ex_y, mode="lines",
-                             name=f"exchange ({len(agg.exchanges)})", hoverinfo="skip",
-                             line={"color": "#999", "width": 1}, meta="exchanges"))
+    traces = [go.Scatter(x=[None if v is None else v * scale for v in ex_x], y=ex_y, mode="lines",
+                         name=f"exchange ({len(agg.exchanges)})", hoverinfo="skip",
+                         line={"color": "#999", "width": 1}, meta="exchanges")]
     un_x: list[float | None] = []
     un_y: list[float | None] = []
     for un in agg.unanswered:
@@ -93,6 +103,13 @@ def timeline(agg: SessionAggregator) -> go.Figure:
         traces.append(go.Scatter(x=un_x, y=un_y, mode="lines", name=f"unanswered ({len(agg.unanswered)})",
                                  hoverinfo="skip", line={"color": "#d62728", "width": 1, "dash": "dot"},
                                  meta="unanswered"))
+    return traces
+
+
+def _record_points(agg: SessionAggregator) -> list[go.Scatter]:
+    """The timeline's records on their side's lane: frames as circles, junk runs as crosses, a trace
+    per side and kind that has any; a point's data is its record's index (a click shows it)."""
+    traces = []
     for direction in ("host", "device"):
         for kind, symbol in (("frame", "circle"), ("junk", "x")):
             rows = [(i, r) for i, r in enumerate(agg.records) if r["dir"] == direction and r["type"] == kind]
@@ -104,10 +121,17 @@ def timeline(agg: SessionAggregator) -> go.Figure:
                 hovertext=[f"#{r['i']} {r.get('bytes', '')}" for _, r in rows], hoverinfo="text+x",
                 marker={"symbol": symbol, "size": 7, "color": LANE_COLOUR[direction]},
                 meta=f"{direction}-{kind}"))
+    return traces
+
+
+def _violation_marks(agg: SessionAggregator) -> list[go.Scatter]:
+    """The timeline's violations, a trace per code in the spec's order: each mark beside the lane of
+    the side at fault (outward, stacked when one record has several)."""
     stacked: dict[int, int] = {}
     by_code: dict[str, list[dict[str, Any]]] = {}
     for mark in agg.marks:
         by_code.setdefault(mark["code"], []).append(mark)
+    traces = []
     for code in sorted(by_code, key=lambda c: list(spec.VIOLATION_TABLE).index(c)
                        if c in spec.VIOLATION_TABLE else 99):
         marks = by_code[code]
@@ -124,11 +148,7 @@ def timeline(agg: SessionAggregator) -> go.Figure:
             hovertext=[f"{code} ({m['side']}){meaning}" for m in marks], hoverinfo="text+x",
             marker={"symbol": CODE_SYMBOL.get(code, "diamond"), "size": 11, "color": code_colour(code)},
             meta="violation"))
-    layout = _layout(agg, "Timeline: host and device lanes (point at a mark for its code, click it for its "
-                          "bytes)", 460,
-                     yaxis={"tickvals": [0, 1], "ticktext": ["device", "host"], "range": [-1.2, 2.2],
-                            "fixedrange": True, "zeroline": False})
-    return go.Figure(data=traces, layout=layout)
+    return traces
 
 
 def _meaning(code: str) -> str:
