@@ -2,8 +2,7 @@
 (INCOMPLETE, exit 2, the device restored), never a failure. The restore after an interruption resets a
 latched alarm even when the interrupt landed between a malformed command and the bookkeeping of its
 answer (the suite still believes nothing is latched): the restore treats the alarm state as unknown and
-sends 0%C first. A real ``xac1 sim`` over TCP, the real client; the interrupt is raised where a signal
-would land (after the answer came, before it is filed)."""
+sends 0%C first. A real ``xac1 sim`` over TCP, the real client, real signals to real runs."""
 
 from __future__ import annotations
 
@@ -18,8 +17,6 @@ import pytest
 from conftest import xac1
 from test_fleet import HELD, OUT_BEFORE, Sim
 
-from conformance import plugin
-from conformance.stopping import Interrupted
 from xac1_proto.client import Client
 from xac1_proto.dut.device import DeviceUnderTest
 from xac1_proto.dut.safety import restore, take_snapshot
@@ -29,6 +26,8 @@ from xac1_proto.frames import AlarmAnswer, ReadVersion, WriteOutputs, WritePoint
 pytestmark = pytest.mark.slow  # conformance runs interrupted
 
 MALFORMED = b"0WPZ\r\n"  # a write-point command with a bad point number: answered with an alarm
+UNKNOWN_HEADER = b"0XY\r\n"  # what the malformed check "unknown-header" sends: answered with an alarm
+SLOW_MS = 300  # the simulator's extra turnaround: the window in which the signal lands
 
 
 @pytest.fixture
@@ -38,54 +37,36 @@ def sim(tmp_path: Path):
     s.close()
 
 
-def _interrupted_after_malformed(sim: Sim) -> DeviceUnderTest:
-    dut = DeviceUnderTest.open(Settings.make(sim.url, False, False, None, timeout=0.5))
-    dut.test = "t"
-    return dut
-
-
-def _interrupt_before_bookkeeping(dut: DeviceUnderTest, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Send MALFORMED; the answer (an alarm) arrives, then SIGINT lands before ``_learn`` files it."""
-
-    def interrupted(command, probe):  # noqa: ANN001 - the signal lands here
-        raise Interrupted(2)
-
-    monkeypatch.setattr(dut, "_learn", interrupted)
-    with pytest.raises(Interrupted):
-        dut.probe(MALFORMED)
-    monkeypatch.undo()
-
-
 def _alarm_latched(client: Client) -> bool:
-    """Whether the device answers 0RV with an alarm (sent on the raw client: the suite's bookkeeping
+    """Whether the device answers 0RV with an alarm (sent on a raw client: the suite's bookkeeping
     sees nothing of it)."""
     return isinstance(client.transact(ReadVersion().to_bytes()).frame, AlarmAnswer)
 
 
-@pytest.mark.parametrize("route", ["restore", "plugin"])
-def test_restore_resets_an_alarm_latched_unbeknown(sim, monkeypatch, route):
-    """Restoring after an interrupted run resets an alarm the run latched without knowing, and puts the
-    settings back."""
-    dut = _interrupted_after_malformed(sim)
+def _control(sim: Sim, line: str) -> None:
+    """A control command typed on the simulator's stdin (``slow MS``: extra turnaround before answers)."""
+    assert sim.proc.stdin is not None
+    sim.proc.stdin.write(line + "\n")
+    sim.proc.stdin.flush()
+
+
+def test_restore_resets_an_alarm_latched_unbeknown(sim):
+    """Restoring after an interrupted run resets an alarm the run latched without knowing (its answer
+    never reached the suite's bookkeeping), and puts the settings back."""
+    dut = DeviceUnderTest.open(Settings.make(sim.url, False, False, None, timeout=0.5))
+    dut.test = "t"
     try:
         snap = take_snapshot(dut)
         dut.send(WritePoint(n=1, v=9, a=2, o=0, pos=0x123))  # the run changed things...
         dut.send(WriteOutputs(o=1))
         assert dut.latched is False
-        _interrupt_before_bookkeeping(dut, monkeypatch)
+        dut.client.transact(MALFORMED)  # ...and latched an alarm past the suite's bookkeeping
         assert dut.latched is False  # the bookkeeping never saw the alarm
         assert _alarm_latched(dut.client) is True  # but the device has it latched
-        if route == "restore":
-            report = restore(dut, snap)
-        else:  # the plugin's end of session, as after Ctrl-C
-            run = plugin.Xac1Run(None)  # type: ignore[arg-type]
-            run.dut, run.snapshot = dut, snap
-            plugin._finish(run)
-            report = run.restore_report
+        report = restore(dut, snap)
     finally:
         dut.close()
     assert report.ok, (report.problems, report.unverified)
-    assert dut.log[-1].raw is not None
     resets = [p for p in dut.log if p.raw and p.raw.startswith(b"0%C")]
     assert resets, "no 0%C sent by the restore"
     with Client(sim.url, timeout=1) as c:
@@ -93,7 +74,43 @@ def test_restore_resets_an_alarm_latched_unbeknown(sim, monkeypatch, route):
     assert sim.points() == HELD and sim.outputs() == OUT_BEFORE
 
 
-@pytest.mark.slow
+def test_sigint_while_an_alarm_answer_is_on_its_way_still_resets_it(sim, tmp_path, private_history):
+    """SIGINT while the run waits for the answer to a malformed command (the device has latched its
+    alarm, the run never files the answer): exit 2, INCOMPLETE with the check cut short (no verdict),
+    the restore's first command is 0%C, and the device is left with no alarm latched, its points and
+    OUT ports as before."""
+    _control(sim, f"slow {SLOW_MS}")
+    before = len(sim.host_bytes())
+    proc = subprocess.Popen([sys.executable, "-m", "xac1_proto", "conformance", "--port", sim.url,
+                             "--timeout", "5", "-k", "malformed_answered and unknown",
+                             "--report", str(tmp_path / "r.md")], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while UNKNOWN_HEADER not in sim.host_bytes()[before:]:
+            assert time.monotonic() < deadline and proc.poll() is None, "the malformed check never began"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGINT)
+        _control(sim, "slow 0")  # the restore at full speed
+        out, _ = proc.communicate(timeout=90)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 2, out[-3000:]
+    last = out.splitlines()[-1]
+    assert last.startswith("xac1 conformance: INCOMPLETE") and "interrupted by SIGINT" in last, last
+    assert "safety PROBLEM" not in out and "safety NOT RESTORED" not in out, out
+    report = (tmp_path / "r.md").read_text()
+    assert "malformed_answered_with_alarm[unknown-header] | interrupted" in report, report
+    sent = sim.host_bytes()[before:]
+    after = sent[sent.index(UNKNOWN_HEADER) + len(UNKNOWN_HEADER):]
+    assert after.startswith(b"0%C"), after[:40]  # the alarm it never saw, reset before anything else
+    with Client(sim.url, timeout=1) as c:
+        assert _alarm_latched(c) is False
+    assert sim.points() == HELD and sim.outputs() == OUT_BEFORE
+
+
 @pytest.mark.parametrize("wait_for", [b"0WP", b"0MP"])
 def test_ctrl_c_during_random_sequences_is_an_interrupted_run(tmp_path, wait_for, private_history):
     """SIGINT once the random sequences have written a point (or moved): exit 2, the verdict says
