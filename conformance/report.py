@@ -264,11 +264,7 @@ def build(run: Any) -> Report:
     rr = run.restore_report
     restore_failed, restore_unverified = ((list(rr.failed_items), list(rr.unverified_items))
                                           if rr is not None else ([], []))
-    judged = {r.nodeid for r in run.results}
-    unjudged = [(nodeid, name, info) for nodeid, name, info in run.collected if nodeid not in judged]
-    cut = "interrupted: the run stopped during this check"
-    not_run_checks = [(name + (" (information)" if info else ""),
-                       cut if nodeid in run.interrupted else "not run") for nodeid, name, info in unjudged]
+    not_run_checks, not_run_topics = _not_reached(run)
     return Report(
         port=s.port, date=run.started.strftime("%Y-%m-%d %H:%M:%S %Z"), options=_options(run, __version__),
         checks=checks, info_errors=info_errors, safety=safety, safety_problems=problems,
@@ -278,10 +274,21 @@ def build(run: Any) -> Report:
         interrupted=run.interrupted_by, deselected=run.deselected, unit=_unit(run.identity),
         command_line=run.command_line or shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seed=s.seed, kit_version=__version__, junit=list(run.results),
-        not_run_topics=[_topic(nodeid) for nodeid, _name, info in unjudged if not info],
+        not_run_topics=not_run_topics,
         timeout=s.timeout, readings=s.readings, restore_failed=restore_failed,
         restore_unverified=restore_unverified,
         **_device_facts(run.dut))
+
+
+def _not_reached(run: Any) -> tuple[list[tuple[str, str]], list[str]]:
+    """The checks collected that got no verdict: each (name, "interrupted: ..." when the run stopped
+    during it, else "not run"), and the topic of each such check of a stated rule."""
+    judged = {r.nodeid for r in run.results}
+    unjudged = [(nodeid, name, info) for nodeid, name, info in run.collected if nodeid not in judged]
+    cut = "interrupted: the run stopped during this check"
+    checks = [(name + (" (information)" if info else ""), cut if nodeid in run.interrupted else "not run")
+              for nodeid, name, info in unjudged]
+    return checks, [_topic(nodeid) for nodeid, _name, info in unjudged if not info]
 
 
 IDENTITY: Final = (("unit id", "unit_id"), ("operator", "operator"), ("station", "station"), ("note", "note"))
