@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from collections.abc import Iterator
 
     from xac1_proto.chunk import Chunk
+    from xac1_proto.conversation import Directions
 
     from .io.base import Report, Source
     from .io.registry import Capture
@@ -192,33 +193,37 @@ def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
 def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
             summaries: list[dict[str, Any]] | None = None) -> int:
     """The analyzer over the whole capture, its records to the outputs, then the summary and the exit
-    status (module docstring)."""
+    status (module docstring). A one-direction capture is told to the engine (the direction of its
+    first chunk), which then judges only what one line's bytes show."""
     from .io.base import WrongFormat
     from .report import ReportError
 
-    analyzer = _analyzer(args)
     try:
-        outputs = _Outputs(capture, args, one_sided, analyzer.conversation.no_answer_timeout)
+        first, chunks = _opening(capture)
+    except WrongFormat:
+        return _wrong_format(capture)
+    analyzer = _analyzer(args, first.dir if one_sided and first is not None else "both")
+    try:
+        outputs = _Outputs(capture, args, analyzer.conversation.no_answer_timeout)
     except ReportError as exc:
         return _error(str(exc))
     try:
         with _progress(capture) as progress:
-            _read_all(capture, analyzer, outputs, progress)
-    except WrongFormat:
-        return _wrong_format(capture)
+            _read_all(chunks, analyzer, outputs, progress)
     finally:
         outputs.view.flush()  # the lines decoded so far are out, however the loop ended (Ctrl-C included)
     outputs.end(analyzer.close())
-    summary = _summary(analyzer, outputs, capture.report)
+    summary = _summary(analyzer, capture.report)
     _publish(summary, capture, outputs, summaries)
     return _exit_status(summary, analyzer, capture)
 
 
-def _analyzer(args: argparse.Namespace) -> Any:
-    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``, ``--readings``)."""
+def _analyzer(args: argparse.Namespace, directions: Directions) -> Any:
+    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``, ``--readings``) and the
+    lines the capture holds."""
     from .analyzer import Analyzer
 
-    options: dict[str, Any] = {"readings": args.readings}
+    options: dict[str, Any] = {"readings": args.readings, "directions": directions}
     if args.no_answer_timeout is not None:
         options["no_answer_timeout"] = args.no_answer_timeout
     if args.storm_limit is not None:
@@ -227,15 +232,13 @@ def _analyzer(args: argparse.Namespace) -> Any:
 
 
 class _Outputs:
-    """Where a decode's records go: the view (through ``--only-violations`` and ``--header``), the
-    one-direction tally, the HTML report and the annotated pcapng. ``wants_records``: False when only
-    the summary is shown (the analyzer then counts its verdicts and makes no record)."""
+    """Where a decode's records go: the view (through ``--only-violations`` and ``--header``), the HTML
+    report and the annotated pcapng. ``wants_records``: False when only the summary is shown (the
+    analyzer then counts its verdicts and makes no record)."""
 
-    def __init__(self, capture: Capture, args: argparse.Namespace, one_sided: bool, timeout: float) -> None:
-        from .records import Tally
+    def __init__(self, capture: Capture, args: argparse.Namespace, timeout: float) -> None:
         from .view import make_view
 
-        self.tally = Tally() if one_sided else None
         self.annotate = _annotated(args, capture)
         self.html_report = None
         if args.report is not None:
@@ -246,25 +249,19 @@ class _Outputs:
         self.view = make_view("text" if summary_only else args.format, sys.stdout, args.color, live=False)
         self.show = None if summary_only else _Filter(args.only_violations, args.header)
         # every record to the view, in one call a batch
-        self.plain = (not summary_only and not args.only_violations and not args.header and self.tally is None
+        self.plain = (not summary_only and not args.only_violations and not args.header
                       and self.html_report is None)
-        self.wants_records = not (summary_only and self.tally is None and self.html_report is None
-                                  and self.annotate is None)
+        self.wants_records = not (summary_only and self.html_report is None and self.annotate is None)
 
     def emit(self, records: list[Any]) -> None:
         """Records to every output that takes them (to the view in one call)."""
         if self.plain:
             self.view.write_many(records)
             return
-        tally, show, html_report = self.tally, self.show, self.html_report
+        show, html_report = self.show, self.html_report
         shown: list[Any] = []
         try:
             for record in records:
-                if tally is not None:
-                    record = _one_sided(record)
-                    if record is None:
-                        continue
-                    tally.add(record)
                 if show is not None and show(record):
                     shown.append(record)
                 if html_report is not None:
@@ -281,19 +278,17 @@ class _Outputs:
         self.view.flush()
 
 
-def _read_all(capture: Capture, analyzer: Any, outputs: _Outputs, progress: _Progress | _NoProgress) -> None:
+def _read_all(chunks: Iterator[Chunk], analyzer: Any, outputs: _Outputs,
+              progress: _Progress | _NoProgress) -> None:
     """Every chunk of the capture through the analyzer: one at a time with its records when annotating
     (each chunk written with them), else in batches (``Analyzer.feed_many``)."""
-    report = capture.report
     if outputs.annotate is not None:
-        for chunk in capture:
-            report.give_up_after = None  # data came: the format reads
+        for chunk in chunks:
             records = analyzer.feed(chunk)
             outputs.annotate.write(chunk, records)
             outputs.emit(records)
             progress.update()
         return
-    chunks = _data_came(capture, report)
     if not outputs.wants_records:
         while analyzer.feed_many(chunks):
             progress.update()
@@ -318,9 +313,9 @@ def _wrong_format(capture: Capture) -> int:
                   f"{capture.format} capture{looks}; leave --input-format out to detect the format")
 
 
-def _summary(analyzer: Any, outputs: _Outputs, report: Report) -> dict[str, Any]:
+def _summary(analyzer: Any, report: Report) -> dict[str, Any]:
     """The summary record, with the capture's problems and notes."""
-    summary: dict[str, Any] = outputs.tally.summary() if outputs.tally is not None else analyzer.summary()
+    summary: dict[str, Any] = analyzer.summary()
     if report.total_problems:
         summary["problems"] = report.total_problems
         summary["problem_messages"] = report.problems[:SUMMARY_PROBLEMS]
@@ -373,16 +368,17 @@ def _few_collections() -> Iterator[None]:
         gc.unfreeze()
 
 
-def _data_came(capture: Capture, report: Report) -> Iterator[Chunk]:
-    """The capture's chunks; from the first on, no longer a wrong format however many problems follow
-    (the first is read here; the others come from the capture's own iterator, through ``chain``)."""
+def _opening(capture: Capture) -> tuple[Chunk | None, Iterator[Chunk]]:
+    """The capture's first chunk (None: it holds none) and all its chunks; from the first on, no longer a
+    wrong format however many problems follow (the others come from the capture's own iterator, through
+    ``chain``)."""
     import itertools
 
     chunks = iter(capture)
     for first in chunks:
-        report.give_up_after = None
-        return itertools.chain((first,), chunks)
-    return chunks
+        capture.report.give_up_after = None
+        return first, itertools.chain((first,), chunks)
+    return None, chunks
 
 
 def _print_problems(report: Report, at_most: int | None = None) -> None:
@@ -391,19 +387,6 @@ def _print_problems(report: Report, at_most: int | None = None) -> None:
         print(f"xac1 decode: {problem}", file=sys.stderr)
     if report.total_problems > len(shown):
         print(f"xac1 decode: ... and {report.total_problems - len(shown)} more problem(s)", file=sys.stderr)
-
-
-def _one_sided(record: Any) -> Any:
-    """A record of a one-direction capture, keeping only the violations one frame's bytes show (the
-    sender's duty, docs/protocol.md "Violation codes"): the others need the missing direction."""
-    if record.type == "timeout":
-        return None
-    keep = tuple(code for code in record.violations if spec.VIOLATION_TABLE[code].duty == spec.SENDER)
-    details = tuple(d for d in record.details if any(d.endswith(f"({code})") for code in keep))
-    changes: dict[str, Any] = {"violations": keep, "details": details}
-    if record.type == "frame":
-        changes.update(reply_to=None, latency_s=None)
-    return record._replace(**changes)
 
 
 class _Filter:
