@@ -249,44 +249,54 @@ class _Outputs:
         self.view = make_view("text" if summary_only else args.format, sys.stdout, args.color, live=False)
         self.show = None if summary_only else _Filter(args.only_violations, args.header)
         # every record to the view, in one call a batch
-        self.plain = (not summary_only and not args.only_violations and not args.header
-                      and self.html_report is None)
-        self.wants_records = not (summary_only and self.html_report is None and self.annotate is None)
+        self.plain = not summary_only and not args.only_violations and not args.header
+        self.wants_records = not summary_only or self.chunk_by_chunk
+
+    @property
+    def chunk_by_chunk(self) -> bool:
+        """Do records go to an output a chunk at a time (the annotated pcapng, the HTML report)?"""
+        return self.annotate is not None or self.html_report is not None
+
+    def take(self, chunk: Chunk, analyzer: Any) -> None:
+        """One chunk through the analyzer (through the HTML report when there is one, which asks the
+        engine after each line), its records to the annotated pcapng with it and to the view."""
+        if self.html_report is not None:
+            records = self.html_report.feed(analyzer, chunk)
+        else:
+            records = analyzer.feed(chunk)
+        if self.annotate is not None:
+            self.annotate.write(chunk, records)
+        self.emit(records)
 
     def emit(self, records: list[Any]) -> None:
-        """Records to every output that takes them (to the view in one call)."""
+        """Records to the view (in one call), through ``--only-violations`` and ``--header``."""
         if self.plain:
             self.view.write_many(records)
             return
-        show, html_report = self.show, self.html_report
-        shown: list[Any] = []
-        try:
-            for record in records:
-                if show is not None and show(record):
-                    shown.append(record)
-                if html_report is not None:
-                    html_report.add(record)
-        finally:  # Ctrl-C too: the records taken are shown
-            self.view.write_many(shown)
+        show = self.show
+        if show is not None:
+            self.view.write_many([record for record in records if show(record)])
 
     def end(self, records: list[Any]) -> None:
         """The records of the end of the data; the annotated pcapng is closed with them."""
         if self.annotate is not None:
             self.annotate.verdicts(records)
             self.annotate.close()
+        if self.html_report is not None:
+            for record in records:
+                self.html_report.add(record)
         self.emit(records)
         self.view.flush()
 
 
 def _read_all(chunks: Iterator[Chunk], analyzer: Any, outputs: _Outputs,
               progress: _Progress | _NoProgress) -> None:
-    """Every chunk of the capture through the analyzer: one at a time with its records when annotating
-    (each chunk written with them), else in batches (``Analyzer.feed_many``)."""
-    if outputs.annotate is not None:
+    """Every chunk of the capture through the analyzer: one at a time when annotating or reporting (each
+    chunk written with its records; the report asks the engine after each line), else in batches
+    (``Analyzer.feed_many``)."""
+    if outputs.chunk_by_chunk:
         for chunk in chunks:
-            records = analyzer.feed(chunk)
-            outputs.annotate.write(chunk, records)
-            outputs.emit(records)
+            outputs.take(chunk, analyzer)
             progress.update()
         return
     if not outputs.wants_records:

@@ -50,7 +50,8 @@ def owed_an_answer(records: list[Record]) -> int:
 @given(st.sampled_from([HOST, DEVICE]).flatmap(
     lambda side: st.tuples(st.just(side), st.lists(lines_of(spec.COMMAND if side == HOST else spec.ANSWER),
                                                    max_size=20))), st.booleans())
-def test_one_way_engine_judges_only_the_senders_duties(side_lines: tuple[str, list[bytes]], timed: bool) -> None:
+def test_one_way_engine_judges_only_the_senders_duties(side_lines: tuple[str, list[bytes]],
+                                                       timed: bool) -> None:
     """Fed one direction's lines, the engine told so finds on each frame and junk run exactly the
     sender-duty violations the two-direction engine finds there, pairs nothing (no answer, no latency, no
     ``no-answer``), keeps nothing waiting, and counts the host lines owed an answer."""
@@ -124,7 +125,8 @@ def test_decode_of_a_host_file_alone(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert any("other direction is missing" in note for note in summary["notes"])
 
 
-def test_decode_of_a_device_file_alone_with_a_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_decode_of_a_device_file_alone_with_a_report(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
     """``xac1 decode device.bin`` alone, with ``--report``: answers are never ``unsolicited-answer``; the
     report is written from the same records."""
     pytest.importorskip("plotly", reason="the report extra (plotly)")

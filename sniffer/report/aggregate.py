@@ -10,9 +10,18 @@ docs/protocol.md "Violation codes"). Memory is bounded whatever the capture's le
   width doubles when there are more than ``Limits.bins`` bins), which draws the whole capture;
 - answer latency: a histogram per command with two significant digits of milliseconds (``LogHistogram``:
   at most 90 buckets a decade) and latency over time (points up to a cap, then per-bin mean and max);
-- axis position (0RC, 0MP and 0MV answers; moves with the duration the rulebook estimated),
-  homing and alarm marks: points up to a cap, then every other point is dropped (the shape stays);
+- axis position, homing and alarm marks: points up to a cap, then every other point is dropped (the
+  shape stays);
 - the alarm history: the first ``Limits.alarms`` alarms, the rest counted.
+What the conversation established is the engine's, never a model of the report's own: the aggregate asks
+the engine that judged the records (``engine``, a ``Conversation``) for the latched alarm
+(``knowledge.latched``: an alarm's span is the engine's latch, from the answer that latched it to the one
+that cleared it), the axis position after each 0RC, 0MP and 0MV answer (``knowledge.position``: drawn only
+where the engine knows it), and a move's estimated time and start (``move_time`` and the position when the
+command was judged). ``feed(analyzer, chunk)`` passes a chunk through the analyzer a line at a time and
+asks the engine after each line, so what it says belongs to that line's records (the records themselves do
+not depend on the chunking); ``add(record)`` (the live sniffer, a chunk at a time) asks it after the
+record's chunk. Without an engine those three are left out.
 Captures without time (raw files and the like) are drawn against the record number instead of time.
 """
 
@@ -20,13 +29,21 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from xac1_proto import frames, spec
+from xac1_proto.chunk import Chunk
+from xac1_proto.conversation import UNKNOWN, Conversation, Fact
 
 from ..records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 from ..view import show_raw
+
+if TYPE_CHECKING:
+    from ..analyzer import Analyzer
+
+_AXIS_ANSWERS = frozenset({"0RC", *spec.MOVE_HEADERS})  # answers after which the position is drawn
 
 
 @dataclass(frozen=True)
@@ -167,7 +184,7 @@ class _Command:
     header: str | None
     frame: frames.Frame | None
     kept: int | None  # index in ``records`` when kept whole
-    window_s: float | None = None  # the answer window the rulebook gave it
+    move: tuple[float, int | None] | None = None  # a move: the engine's estimated time, its start position
 
 
 @dataclass
@@ -177,6 +194,7 @@ class SessionAggregator:
     limits: Limits = field(default_factory=Limits)
     sources: list[tuple[str, str]] = field(default_factory=list)  # (file or port, format)
     no_answer_timeout: float = spec.NO_ANSWER_TIMEOUT_S
+    engine: Conversation | None = None  # the engine that judged the records: asked what it established
 
     def __post_init__(self) -> None:
         self.tally = Tally()
@@ -204,15 +222,33 @@ class SessionAggregator:
         self.alarms: list[Alarm] = []
         self.alarm_count = 0
         self._waiting: dict[int, _Command] = {}
-        self._position: int | None = None  # the last position an answer told (None: unknown)
+        self._latched: Fact[int] = Fact()  # the engine's latch when last asked
         self._open_alarm: Alarm | None = None
         self._await_reaction: Alarm | None = None
         self.finished = False
 
     # ---- input ----
 
+    def feed(self, analyzer: Analyzer, chunk: Chunk) -> list[Record]:
+        """``chunk`` through ``analyzer`` a line at a time, each line's records added with its engine asked
+        right after that line (module docstring); returns the records, as ``analyzer.feed(chunk)`` would."""
+        self.engine = analyzer.conversation
+        out: list[Record] = []
+        for line in _lines(chunk):
+            records = analyzer.feed(line)
+            last = len(records) - 1
+            for k, record in enumerate(records):
+                self._add(record, ask=k == last)
+            out += records
+        return out
+
     def add(self, record: Record) -> None:
-        """One record as the analyzer made it."""
+        """One record as the analyzer made it (the engine, if any, asked as it stands now)."""
+        self._add(record, ask=True)
+
+    def _add(self, record: Record, ask: bool) -> None:
+        """One record; ``ask``: the engine stands right after it (what it established is the record's)."""
+        engine = self.engine if ask else None
         self.tally.add(record)
         self.total_records += 1
         if record.t is None:
@@ -233,19 +269,29 @@ class SessionAggregator:
             command = self._waiting.pop(record.command, None)
             if command is not None and command.kept is not None and kept is not None:
                 self.unanswered.append({"from": command.x, "to": x, "header": command.header})
-            return
+            answered = None
+        else:
+            answered = self._line(record, x, kept, engine)
+        if engine is not None:
+            self._latch(engine.knowledge.latched, record, x, answered)
+
+    def _line(self, record: FrameRecord | JunkRecord, x: float, kept: int | None,
+              engine: Conversation | None) -> str | None:
+        """A frame or junk run: counted by direction, commands remembered until answered; the header of
+        the command an answer replied to."""
         self.bins.add(x, f"{record.dir}:{record.type}")
         if isinstance(record, FrameRecord):
             if record.dir == "host":
-                self._host_frame(record, x, kept)
-            else:
-                self._device_frame(record, x, kept)
-        elif record.dir == "host" and record.raw.endswith(spec.FRAME_END):
+                self._host_frame(record, x, kept, engine)
+                return None
+            return self._device_frame(record, x, kept, engine)
+        if record.dir == "host" and record.raw.endswith(spec.FRAME_END):
             # a junk line: the device owes it an alarm answer (docs/protocol.md "Behaviour the vendor
             # text states"), so the rulebook may say no-answer for it
             self._waiting[record.i] = _Command(x, record.t, None, None, kept)
             if len(self._waiting) > self.limits.waiting:
                 del self._waiting[next(iter(self._waiting))]
+        return None
 
     def _x(self, record: Record) -> float:
         """Where a record goes on the time axis: its time, or its number in a capture without time."""
@@ -266,8 +312,13 @@ class SessionAggregator:
         self.records.append(_describe(record, x))
         return len(self.records) - 1
 
-    def _host_frame(self, record: FrameRecord, x: float, kept: int | None) -> None:
-        self._waiting[record.i] = _Command(x, record.t, record.header, record.frame, kept, record.window_s)
+    def _host_frame(self, record: FrameRecord, x: float, kept: int | None,
+                    engine: Conversation | None) -> None:
+        move = None
+        if engine is not None and record.header in spec.MOVE_HEADERS and record.frame is not None:
+            start = engine.knowledge.position
+            move = (engine.move_time(record.frame), start.value if start.judged else None)
+        self._waiting[record.i] = _Command(x, record.t, record.header, record.frame, kept, move)
         if len(self._waiting) > self.limits.waiting:
             del self._waiting[next(iter(self._waiting))]
         alarm = self._await_reaction
@@ -277,7 +328,8 @@ class SessionAggregator:
                 alarm.reaction_after = record.t - alarm.x
             self._await_reaction = None
 
-    def _device_frame(self, record: FrameRecord, x: float, kept: int | None) -> None:
+    def _device_frame(self, record: FrameRecord, x: float, kept: int | None,
+                      engine: Conversation | None) -> str | None:
         command = self._waiting.pop(record.reply_to, None) if record.reply_to is not None else None
         if command is not None:
             self.exchange_count += 1
@@ -291,69 +343,52 @@ class SessionAggregator:
                 self.latency_points.add((x, ms, header, kept))
                 self.latency_bins.add(x, header, ms)
         frame = record.frame
-        if frame is None:
-            return
         if isinstance(frame, frames.AlarmAnswer):
-            self._alarm(record, frame, x, command, kept)
-            return
-        self._alarm_ended(record, x)
-        self._axis_answer(record, frame, x, command, kept)
+            self.alarm_marks.add((x, frame.code, kept))
+            alarm = self._open_alarm
+            if alarm is not None and alarm.code == frame.code:  # the latched alarm answered again
+                alarm.repeats += 1
+                self._await_reaction = alarm if alarm.reaction is None else None
+        elif engine is not None and frame is not None and record.header in _AXIS_ANSWERS:
+            self._axis_answer(record, frame, x, command, kept, engine)
+        return command.header if command is not None else None
 
-    def _alarm(self, record: FrameRecord, frame: frames.AlarmAnswer, x: float,
-               command: _Command | None, kept: int | None) -> None:
-        self.alarm_marks.add((x, frame.code, kept))
-        if frame.code == spec.ALARM_NONE:
+    def _latch(self, latched: Fact[int], record: Record, x: float, answered: str | None) -> None:
+        """The engine's latch after ``record`` (an answer to an ``answered`` command): an alarm span opens
+        where it latches a code and ends where it clears, changes or becomes unknown."""
+        before, self._latched = self._latched, latched
+        if latched.value == before.value:
             return
-        self._position = None
-        open_alarm = self._open_alarm
-        if open_alarm is not None and open_alarm.code == frame.code:
-            open_alarm.repeats += 1
-            self._await_reaction = open_alarm if open_alarm.reaction is None else None
+        alarm = self._open_alarm
+        if alarm is not None:
+            alarm.ended = _why_ended(record, latched)
+            alarm.latched_for = self._span(alarm, x)
+            self._open_alarm = self._await_reaction = None
+        if latched.value is None or not isinstance(record, FrameRecord):
             return
         self.alarm_count += 1
-        alarm = Alarm(x, frame.code, spec.alarm_meaning(frame.code),
-                      command.header if command is not None else None, record.i)
+        alarm = Alarm(x, latched.value, spec.alarm_meaning(latched.value), answered, record.i)
         if len(self.alarms) < self.limits.alarms:
             self.alarms.append(alarm)
-        if open_alarm is not None and open_alarm.ended is None:
-            open_alarm.ended = f"followed by alarm {frame.code:02X}"
-            open_alarm.latched_for = self._span(open_alarm, x)
-        self._open_alarm = alarm
-        self._await_reaction = alarm
-
-    def _alarm_ended(self, record: FrameRecord, x: float) -> None:
-        alarm = self._open_alarm
-        if alarm is None:
-            return
-        if record.header == spec.RESET_HEADER:
-            alarm.ended = "reset (0%C answered)"
-        else:
-            broken = " (latch-broken)" if "latch-broken" in record.violations else ""
-            alarm.ended = f"a normal {record.header or 'unknown'} answer{broken}"
-        alarm.latched_for = self._span(alarm, x)
-        self._open_alarm = None
+        self._open_alarm = self._await_reaction = alarm
 
     def _span(self, alarm: Alarm, x: float) -> float | None:
         return x - alarm.x if self.timed else None
 
-    def _axis_answer(self, record: FrameRecord, frame: frames.Frame, x: float,
-                     command: _Command | None, kept: int | None) -> None:
-        start = self._position
-        estimate = None
-        if command is not None and command.window_s is not None and record.header in spec.MOVE_HEADERS:
-            # the rulebook's answer window is the estimated move time doubled plus the plain timeout
-            estimate = max(0.0, (command.window_s - self.no_answer_timeout) / 2.0)
-        pos = getattr(frame, "pos", None)
-        if record.header in ("0RC", "0MP", "0MV") and pos is not None:
-            self._position = None if pos == spec.UNKNOWN_POSITION else pos
-        if record.header not in ("0RC", "0MP", "0MV") or pos is None or pos == spec.UNKNOWN_POSITION:
+    def _axis_answer(self, record: FrameRecord, frame: frames.Frame, x: float, command: _Command | None,
+                     kept: int | None, engine: Conversation) -> None:
+        """0RC, 0MP, 0MV answers: the position the engine holds after it (drawn only where known), the
+        homing a 0MP0 answer reports, and the move with the engine's estimate (from a known start)."""
+        position = engine.knowledge.position
+        if not position.judged or position.value is None:
             return
-        self.positions.add((x, pos, record.header, kept))
+        self.positions.add((x, position.value, record.header, kept))
         if isinstance(frame, frames.MovePointAnswer) and frame.n == 0:
             self.homings.add(x)
-        if command is not None and estimate is not None:
+        if command is not None and command.move is not None:
+            estimate, start = command.move
             est_end = command.x + estimate if self.timed else x
-            self.moves.add((command.x, min(est_end, x), x, start, pos, record.header))
+            self.moves.add((command.x, min(est_end, x), x, start, position.value, record.header))
 
     # ---- output ----
 
@@ -382,6 +417,33 @@ class SessionAggregator:
                          "meaning": vspec.meaning if vspec else "",
                          "section": vspec.section if vspec else ""})
         return rows
+
+
+def _lines(chunk: Chunk) -> Iterator[Chunk]:
+    """``chunk`` cut after each LF: pieces with its time, direction and line error."""
+    data, start = chunk.data, 0
+    end = data.find(b"\n") + 1
+    if end == 0 or end == len(data):
+        yield chunk
+        return
+    while end:
+        yield Chunk(chunk.t, chunk.dir, data[start:end], chunk.error)
+        start, end = end, data.find(b"\n", end) + 1
+    if start < len(data):
+        yield Chunk(chunk.t, chunk.dir, data[start:], chunk.error)
+
+
+def _why_ended(record: Record, latched: Fact[int]) -> str:
+    """What ended an alarm's span: the record after which the engine's latch cleared, changed or became
+    unknown."""
+    if latched.status == UNKNOWN:
+        return "unknown from here (the engine lost track: an answer missing or garbled)"
+    frame = record.frame if isinstance(record, FrameRecord) else None
+    if isinstance(frame, frames.AlarmAnswer):
+        return f"followed by alarm {frame.code:02X}"
+    if isinstance(record, FrameRecord) and record.header == spec.RESET_HEADER:
+        return "reset (0%C answered)"
+    return f"a {record.header or 'unknown'} answer" if isinstance(record, FrameRecord) else record.type
 
 
 def _describe(record: Record, x: float) -> dict[str, Any]:
