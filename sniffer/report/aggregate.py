@@ -258,13 +258,8 @@ class SessionAggregator:
             self.t_last = record.t if self.t_last is None else max(self.t_last, record.t)
         x = self._x(record)
         kept = self._keep(record, x)
-        side_of = {code: spec.VIOLATION_TABLE[code].side(record.dir) for code in record.violations}
-        for code, side in side_of.items():
-            self.sides[(code, side)] += 1
-            self.mark_count += 1
-            self.bins.add(x, "violation:" + code)
-            if kept is not None:
-                self.marks.append({"x": x, "side": side, "code": code, "record": kept})
+        if record.violations:
+            self._marks(record, x, kept)
         if isinstance(record, TimeoutRecord):
             command = self._waiting.pop(record.command, None)
             if command is not None and command.kept is not None and kept is not None:
@@ -274,6 +269,17 @@ class SessionAggregator:
             answered = self._line(record, x, kept, engine)
         if engine is not None:
             self._latch(engine.knowledge.latched, record, x, answered)
+
+    def _marks(self, record: Record, x: float, kept: int | None) -> None:
+        """A record's violations: counted by code and side (``spec.VIOLATION_TABLE[code].side``), binned,
+        and marked where the record is kept whole."""
+        for code in record.violations:
+            side = spec.VIOLATION_TABLE[code].side(record.dir)
+            self.sides[(code, side)] += 1
+            self.mark_count += 1
+            self.bins.add(x, "violation:" + code)
+            if kept is not None:
+                self.marks.append({"x": x, "side": side, "code": code, "record": kept})
 
     def _line(self, record: FrameRecord | JunkRecord, x: float, kept: int | None,
               engine: Conversation | None) -> str | None:
@@ -330,28 +336,39 @@ class SessionAggregator:
 
     def _device_frame(self, record: FrameRecord, x: float, kept: int | None,
                       engine: Conversation | None) -> str | None:
+        """An answer: its exchange, its alarm or what the engine holds of the axis after it; the header
+        of the command it answered."""
         command = self._waiting.pop(record.reply_to, None) if record.reply_to is not None else None
         if command is not None:
-            self.exchange_count += 1
-            if command.kept is not None and kept is not None:
-                self.exchanges.append({"from": command.x, "to": x, "header": command.header,
-                                       "command": command.kept, "answer": kept})
-            if record.latency_s is not None:
-                header = command.header or "?"
-                ms = record.latency_s * 1000.0
-                self.latency_hist.setdefault(header, LogHistogram()).add(ms)
-                self.latency_points.add((x, ms, header, kept))
-                self.latency_bins.add(x, header, ms)
+            self._exchange(command, record, x, kept)
         frame = record.frame
         if isinstance(frame, frames.AlarmAnswer):
-            self.alarm_marks.add((x, frame.code, kept))
-            alarm = self._open_alarm
-            if alarm is not None and alarm.code == frame.code:  # the latched alarm answered again
-                alarm.repeats += 1
-                self._await_reaction = alarm if alarm.reaction is None else None
+            self._alarm_answer(frame, x, kept)
         elif engine is not None and frame is not None and record.header in _AXIS_ANSWERS:
             self._axis_answer(record, frame, x, command, kept, engine)
         return command.header if command is not None else None
+
+    def _exchange(self, command: _Command, record: FrameRecord, x: float, kept: int | None) -> None:
+        """A command answered: the exchange (drawn when both ends are kept) and its latency."""
+        self.exchange_count += 1
+        if command.kept is not None and kept is not None:
+            self.exchanges.append({"from": command.x, "to": x, "header": command.header,
+                                   "command": command.kept, "answer": kept})
+        if record.latency_s is not None:
+            header = command.header or "?"
+            ms = record.latency_s * 1000.0
+            self.latency_hist.setdefault(header, LogHistogram()).add(ms)
+            self.latency_points.add((x, ms, header, kept))
+            self.latency_bins.add(x, header, ms)
+
+    def _alarm_answer(self, frame: frames.AlarmAnswer, x: float, kept: int | None) -> None:
+        """An alarm answer: its mark; the latched alarm answered again is a repeat, and the host's next
+        frame its reaction."""
+        self.alarm_marks.add((x, frame.code, kept))
+        alarm = self._open_alarm
+        if alarm is not None and alarm.code == frame.code:
+            alarm.repeats += 1
+            self._await_reaction = alarm if alarm.reaction is None else None
 
     def _latch(self, latched: Fact[int], record: Record, x: float, answered: str | None) -> None:
         """The engine's latch after ``record`` (an answer to an ``answered`` command): an alarm span opens
