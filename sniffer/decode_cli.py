@@ -3,9 +3,12 @@
 A thin shell in three parts: argument parsing (``add_arguments``, each value checked as it is parsed),
 source opening (``sniffer.capture_args``, shared with ``xac1 replay``: each file opened once, ``-`` being
 standard input; the format sniffed from the buffered heads by ``sniffer.io.registry``), and output
-(``_decode``, in named steps: ``_analyzer`` with the rule options, ``_Outputs`` where records go,
-``_read_all`` the chunks through the analyzer, ``_summary``, ``_publish``, ``_exit_status``; the sniffer's
-``Analyzer`` judges, its views print; with ``--format summary`` alone no record is made). Problems in the
+(``_decode``, in named steps: ``_opening`` the first chunk, ``_analyzer`` with the rule options and the
+lines the capture holds (a one-direction capture is told to the engine, which then judges only what one
+line's bytes show), ``_Outputs`` where records go, ``_read_all`` the chunks through the analyzer (through
+the HTML report when there is one, which asks the engine after each line), ``_summary``, ``_publish``,
+``_exit_status``; the sniffer's ``Analyzer`` judges, its views print; with ``--format summary`` alone no
+record is made). Problems in the
 file (a malformed line, a damaged record) are listed on stderr with file and line or byte offset, counted
 in the summary record, and what could be read is decoded anyway.
 
