@@ -99,10 +99,17 @@ class TimeBins:
         if self.origin is None:
             self.origin = math.floor(x)
         index = int((x - self.origin) // self.width)
-        stats = self.bins.setdefault(index, {}).setdefault(key, [0, 0.0, -math.inf])
-        stats[0] += 1
-        stats[1] += value
-        stats[2] = max(stats[2], value)
+        keys = self.bins.get(index)
+        if keys is None:
+            keys = self.bins[index] = {}
+        stats = keys.get(key)
+        if stats is None:
+            keys[key] = [1, value, value]
+        else:
+            stats[0] += 1
+            stats[1] += value
+            if value > stats[2]:
+                stats[2] = value
         while len(self.bins) > self.limit:
             self._coarsen()
 
@@ -197,7 +204,6 @@ class SessionAggregator:
     engine: Conversation | None = None  # the engine that judged the records: asked what it established
 
     def __post_init__(self) -> None:
-        self.tally = Tally()
         self.summary: dict[str, Any] | None = None
         self.records: list[dict[str, Any]] = []  # kept whole, in order
         self.dropped_records = 0  # records not kept whole
@@ -233,14 +239,20 @@ class SessionAggregator:
         """``chunk`` through ``analyzer`` a line at a time, each line's records added with its engine asked
         right after that line (module docstring); returns the records, as ``analyzer.feed(chunk)`` would."""
         self.engine = analyzer.conversation
+        lf = chunk.data.find(b"\n")
+        if lf < 0 or lf == len(chunk.data) - 1:  # the usual chunk: one line, or a part of one
+            return self._line_records(analyzer.feed(chunk))
         out: list[Record] = []
         for line in _lines(chunk):
-            records = analyzer.feed(line)
-            last = len(records) - 1
-            for k, record in enumerate(records):
-                self._add(record, ask=k == last)
-            out += records
+            out += self._line_records(analyzer.feed(line))
         return out
+
+    def _line_records(self, records: list[Record]) -> list[Record]:
+        """The records of one line, the engine asked at the last (it stands right after it)."""
+        last = len(records) - 1
+        for k, record in enumerate(records):
+            self._add(record, ask=k == last)
+        return records
 
     def add(self, record: Record) -> None:
         """One record as the analyzer made it (the engine, if any, asked as it stands now)."""
@@ -249,7 +261,6 @@ class SessionAggregator:
     def _add(self, record: Record, ask: bool) -> None:
         """One record; ``ask``: the engine stands right after it (what it established is the record's)."""
         engine = self.engine if ask else None
-        self.tally.add(record)
         self.total_records += 1
         if record.t is None:
             self.timed = False
@@ -410,8 +421,9 @@ class SessionAggregator:
     # ---- output ----
 
     def finish(self, summary: dict[str, Any] | None = None) -> None:
-        """No more records; ``summary`` is the analyzer's own (it knows the commands still waiting)."""
-        self.summary = summary if summary is not None else self.tally.summary()
+        """No more records; ``summary`` is the analyzer's own (the counts are its, never counted twice;
+        none: nothing was analyzed)."""
+        self.summary = summary if summary is not None else Tally().summary()
         self.finished = True
 
     @property
@@ -440,9 +452,6 @@ def _lines(chunk: Chunk) -> Iterator[Chunk]:
     """``chunk`` cut after each LF: pieces with its time, direction and line error."""
     data, start = chunk.data, 0
     end = data.find(b"\n") + 1
-    if end == 0 or end == len(data):
-        yield chunk
-        return
     while end:
         yield Chunk(chunk.t, chunk.dir, data[start:end], chunk.error)
         start, end = end, data.find(b"\n", end) + 1
