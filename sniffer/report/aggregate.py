@@ -16,12 +16,13 @@ docs/protocol.md "Violation codes"). Memory is bounded whatever the capture's le
 What the conversation established is the engine's, never a model of the report's own: the aggregate asks
 the engine that judged the records (``engine``, a ``Conversation``) for the latched alarm
 (``knowledge.latched``: an alarm's span is the engine's latch, from the answer that latched it to the one
-that cleared it), the axis position after each 0RC, 0MP and 0MV answer (``knowledge.position``: drawn only
-where the engine knows it), and a move's estimated time and start (``move_time`` and the position when the
-command was judged). ``feed(analyzer, chunk)`` passes a chunk through the analyzer a line at a time and
-asks the engine after each line, so what it says belongs to that line's records (the records themselves do
-not depend on the chunking); ``add(record)`` (the live sniffer, a chunk at a time) asks it after the
-record's chunk. Without an engine those three are left out.
+that cleared it) and a move's estimated time and start (``move_time`` and ``knowledge.position`` when the
+command was judged: a move is drawn only from a start the engine knew). The positions drawn are those the
+0RC, 0MP and 0MV answers give (a record's field, as its latency is; none for FFFFFF).
+``feed(analyzer, chunk)`` passes a chunk through the analyzer a line at a time and asks the engine after
+each line, so what it says belongs to that line's records (the records themselves do not depend on the
+chunking); ``add(record)`` (the live sniffer, a chunk at a time) asks it after the record's chunk.
+Without an engine, alarm spans and moves are left out.
 Captures without time (raw files and the like) are drawn against the record number instead of time.
 """
 
@@ -347,16 +348,16 @@ class SessionAggregator:
 
     def _device_frame(self, record: FrameRecord, x: float, kept: int | None,
                       engine: Conversation | None) -> str | None:
-        """An answer: its exchange, its alarm or what the engine holds of the axis after it; the header
-        of the command it answered."""
+        """An answer: its exchange, its alarm or the axis position it gives; the header of the command it
+        answered."""
         command = self._waiting.pop(record.reply_to, None) if record.reply_to is not None else None
         if command is not None:
             self._exchange(command, record, x, kept)
         frame = record.frame
         if isinstance(frame, frames.AlarmAnswer):
             self._alarm_answer(frame, x, kept)
-        elif engine is not None and frame is not None and record.header in _AXIS_ANSWERS:
-            self._axis_answer(record, frame, x, command, kept, engine)
+        elif frame is not None and record.header in _AXIS_ANSWERS:
+            self._axis_answer(record, frame, x, command, kept)
         return command.header if command is not None else None
 
     def _exchange(self, command: _Command, record: FrameRecord, x: float, kept: int | None) -> None:
@@ -404,19 +405,19 @@ class SessionAggregator:
         return x - alarm.x if self.timed else None
 
     def _axis_answer(self, record: FrameRecord, frame: frames.Frame, x: float, command: _Command | None,
-                     kept: int | None, engine: Conversation) -> None:
-        """0RC, 0MP, 0MV answers: the position the engine holds after it (drawn only where known), the
-        homing a 0MP0 answer reports, and the move with the engine's estimate (from a known start)."""
-        position = engine.knowledge.position
-        if not position.judged or position.value is None:
+                     kept: int | None) -> None:
+        """0RC, 0MP, 0MV answers: the position the answer gives (none for FFFFFF, "not homed"), the homing
+        a 0MP0 answer reports, and the move from the start the engine knew over its estimate."""
+        pos = getattr(frame, "pos", None)
+        if pos is None or pos == spec.UNKNOWN_POSITION:
             return
-        self.positions.add((x, position.value, record.header, kept))
+        self.positions.add((x, pos, record.header, kept))
         if isinstance(frame, frames.MovePointAnswer) and frame.n == 0:
             self.homings.add(x)
-        if command is not None and command.move is not None:
+        if command is not None and command.move is not None and command.move[1] is not None:
             estimate, start = command.move
             est_end = command.x + estimate if self.timed else x
-            self.moves.add((command.x, min(est_end, x), x, start, position.value, record.header))
+            self.moves.add((command.x, min(est_end, x), x, start, pos, record.header))
 
     # ---- output ----
 
