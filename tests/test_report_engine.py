@@ -76,12 +76,15 @@ def test_an_alarm_span_is_the_engines_latch() -> None:
     assert span.latched_for is not None and abs(span.latched_for - 3.0) < 1e-6
 
 
-def test_no_position_before_the_engine_knows_one() -> None:
-    """A 0RC answering FFFFFF (not homed) and a move answered before any position was known draw no
-    position and no move from an unknown start (issue 40 item 8); the first known position is drawn."""
+def test_no_move_from_a_start_the_engine_did_not_know() -> None:
+    """A 0RC answering FFFFFF (not homed) draws no position; the move after it starts where the engine does
+    not know the axis, so only where its answer put it is drawn, no move line (issue 40 item 8: no position
+    drawn before one is known)."""
     unhomed = ReadCurrentAnswer(n=0, v=0, a=0, o=0, pos=0xFFFFFF).to_bytes()
-    agg, _ = aggregate([(0.0, HOST, RC), (0.01, DEVICE, unhomed), (1.0, HOST, RC), (1.01, DEVICE, AT_1000)])
-    assert [(p[1], p[2]) for p in agg.positions.items] == [(0x1000, "0RC")]
+    agg, _ = aggregate([(0.0, HOST, RC), (0.01, DEVICE, unhomed), (1.0, HOST, MOVE.to_bytes()),
+                        (9.0, DEVICE, MoveDirectAnswer(vel=5, a=3, pos=0x3000).to_bytes()), (10.0, HOST, RC),
+                        (10.01, DEVICE, ReadCurrentAnswer(n=0, v=0, a=0, o=0, pos=0x3000).to_bytes())])
+    assert [(p[1], p[2]) for p in agg.positions.items] == [(0x3000, "0MV"), (0x3000, "0RC")]
     assert agg.moves.items == []
 
 
