@@ -28,7 +28,7 @@ from typing import Final
 
 from xac1_proto import FrameBytes, Framer, Junk, motion, rules, spec
 from xac1_proto.chunk import DEVICE, HOST, Chunk, Direction
-from xac1_proto.conversation import Conversation, Verdict
+from xac1_proto.conversation import BOTH, Conversation, Directions, Verdict
 
 from .records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 
@@ -36,6 +36,7 @@ NO_ANSWER_TIMEOUT_S: Final = spec.NO_ANSWER_TIMEOUT_S  # docs/protocol.md silent
 DEVICE_IDLE_FLUSH_S: Final = 1.0  # a partial device frame this long quiet becomes junk
 FEED_BATCH: Final = 1024  # chunks ``feed_many`` takes at most in one call
 FEED_BYTES: Final = 1 << 18  # bytes after which ``feed_many`` returns (its records hold them)
+FEED_VERDICTS: Final = 4096  # verdicts after which ``feed_many`` returns (short junk runs: many a chunk)
 
 
 class Analyzer:
@@ -44,9 +45,11 @@ class Analyzer:
     def __init__(self, no_answer_timeout: float = NO_ANSWER_TIMEOUT_S, storm_limit: int = spec.STORM_LIMIT,
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,
                  device_idle_flush: float | None = DEVICE_IDLE_FLUSH_S,
-                 readings: rules.Readings = rules.DEFAULT_READINGS) -> None:
+                 readings: rules.Readings = rules.DEFAULT_READINGS, directions: Directions = BOTH) -> None:
+        """``directions``: the lines the capture holds (``both``; ``host`` or ``device`` for a one-direction
+        capture, which the engine judges only as far as one line's bytes show)."""
         self.conversation = Conversation(no_answer_timeout=no_answer_timeout, storm_limit=storm_limit,
-                                         speeds=speeds, readings=readings)
+                                         speeds=speeds, readings=readings, directions=directions)
         self.device_idle_flush = device_idle_flush
         self.tally = Tally()
         self._framers: dict[str, Framer] = {HOST: Framer(), DEVICE: Framer()}
@@ -67,10 +70,10 @@ class Analyzer:
 
     def feed_many(self, chunks: Iterator[Chunk], out: list[Record] | None = None,
                   limit: int = FEED_BATCH) -> int:
-        """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them or ``FEED_BYTES``, in one
-        loop: their records, the same and in the same order as ``feed`` gives, appended to ``out`` (an
-        exception, Ctrl-C included, loses none of the chunks taken); ``out`` None: no records are made,
-        the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
+        """``feed`` for the next chunks of ``chunks``, up to ``limit`` of them, ``FEED_BYTES`` or
+        ``FEED_VERDICTS``, in one loop: their records, the same and in the same order as ``feed`` gives,
+        appended to ``out`` (an exception, Ctrl-C included, loses none of the chunks taken); ``out`` None:
+        no records are made, the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
 
         Each chunk, in one loop body: its bytes are framed by its line's framer and judged, time passing
         to its time first. The usual chunk, one whole frame with nothing pending on its line, the framer
@@ -111,7 +114,7 @@ class Analyzer:
                 if events:
                     judge(direction, events)
                 size += len(data)
-                if size >= FEED_BYTES:  # records hold their bytes: memory stays bounded
+                if size >= FEED_BYTES or len(self._judged) >= FEED_VERDICTS:  # memory stays bounded
                     break
         finally:
             self._emit(out)

@@ -147,31 +147,21 @@ def _size(path: str) -> int:
         return 0
 
 
-def run(args: argparse.Namespace, decode: Decode) -> int:
-    """``xac1 decode --batch``: every file decoded by ``decode``, a process each up to ``--jobs``."""
-    refused = [f"--{name.replace('_', '-')}" for name in _REFUSED if getattr(args, name, None)]
-    if refused:
-        print(f"xac1 decode: --batch prints one summary row per file; {', '.join(refused)} "
-              f"work on one capture only", file=sys.stderr)
-        return 2
-    jobs = args.jobs or default_jobs()
-    files, wrong, skipped = expand(args.files)
-    for message in wrong + skipped:
-        print(f"xac1 decode: {message}", file=sys.stderr)
-    if not files:
-        return 2
+def decode_all(files: list[str], args: argparse.Namespace, decode: Decode, jobs: int) -> list[dict[str, Any]]:
+    """The rows of ``files``, in the order given: in this process for one job or one file, else a process
+    each up to ``jobs``, the largest first (the processes then end about together)."""
     if jobs == 1 or len(files) == 1:
-        rows = [decode_one(f, args, decode) for f in files]
-    else:
-        # the largest first (the processes then end about together); the rows in the order given
-        with ProcessPoolExecutor(max_workers=min(jobs, len(files))) as pool:
-            futures = {k: pool.submit(decode_one, files[k], args, decode)
-                       for k in sorted(range(len(files)), key=lambda k: -_size(files[k]))}
-            rows = [futures[k].result() for k in range(len(files))]
-    for row in rows:
-        sys.stderr.write(row.pop(_MESSAGES))
+        return [decode_one(f, args, decode) for f in files]
+    with ProcessPoolExecutor(max_workers=min(jobs, len(files))) as pool:
+        futures = {k: pool.submit(decode_one, files[k], args, decode)
+                   for k in sorted(range(len(files)), key=lambda k: -_size(files[k]))}
+        return [futures[k].result() for k in range(len(files))]
+
+
+def print_rows(rows: list[dict[str, Any]], fmt: str) -> None:
+    """The rows and their total on stdout: JSON lines (``--format jsonl``), else a table."""
     all_rows = rows + [total(rows)]
-    if args.format == "jsonl":
+    if fmt == "jsonl":
         for row in all_rows:
             print(json.dumps(row, separators=(",", ":")))
     else:
@@ -182,6 +172,30 @@ def run(args: argparse.Namespace, decode: Decode) -> int:
         t = all_rows[-1]
         print(_row_text(f"total ({t['files']} files, {t['failed']} failed)", "", t, ""))
     sys.stdout.flush()
+
+
+def batch_status(rows: list[dict[str, Any]], wrong: list[str]) -> int:
+    """2 when an argument was wrong or a file decoded nothing, else 1 when any file has violations or
+    problems, else 0 (module docstring)."""
     if wrong or any(r["exit"] == 2 for r in rows):
         return 2
     return 1 if any(r["exit"] for r in rows) else 0
+
+
+def run(args: argparse.Namespace, decode: Decode) -> int:
+    """``xac1 decode --batch``: every file decoded by ``decode``, a process each up to ``--jobs``."""
+    refused = [f"--{name.replace('_', '-')}" for name in _REFUSED if getattr(args, name, None)]
+    if refused:
+        print(f"xac1 decode: --batch prints one summary row per file; {', '.join(refused)} "
+              f"work on one capture only", file=sys.stderr)
+        return 2
+    files, wrong, skipped = expand(args.files)
+    for message in wrong + skipped:
+        print(f"xac1 decode: {message}", file=sys.stderr)
+    if not files:
+        return 2
+    rows = decode_all(files, args, decode, args.jobs or default_jobs())
+    for row in rows:
+        sys.stderr.write(row.pop(_MESSAGES))
+    print_rows(rows, args.format)
+    return batch_status(rows, wrong)

@@ -3,9 +3,12 @@
 A thin shell in three parts: argument parsing (``add_arguments``, each value checked as it is parsed),
 source opening (``sniffer.capture_args``, shared with ``xac1 replay``: each file opened once, ``-`` being
 standard input; the format sniffed from the buffered heads by ``sniffer.io.registry``), and output
-(``_decode``, in named steps: ``_analyzer`` with the rule options, ``_Outputs`` where records go,
-``_read_all`` the chunks through the analyzer, ``_summary``, ``_publish``, ``_exit_status``; the sniffer's
-``Analyzer`` judges, its views print; with ``--format summary`` alone no record is made). Problems in the
+(``_decode``, in named steps: ``_opening`` the first chunk, ``_analyzer`` with the rule options and the
+lines the capture holds (a one-direction capture is told to the engine, which then judges only what one
+line's bytes show), ``_Outputs`` where records go, ``_read_all`` the chunks through the analyzer (through
+the HTML report when there is one, which asks the engine after each line), ``_summary``, ``_publish``,
+``_exit_status``; the sniffer's ``Analyzer`` judges, its views print; with ``--format summary`` alone no
+record is made). Problems in the
 file (a malformed line, a damaged record) are listed on stderr with file and line or byte offset, counted
 in the summary record, and what could be read is decoded anyway.
 
@@ -32,6 +35,7 @@ if TYPE_CHECKING:
     from collections.abc import Iterator
 
     from xac1_proto.chunk import Chunk
+    from xac1_proto.conversation import Directions
 
     from .io.base import Report, Source
     from .io.registry import Capture
@@ -192,33 +196,37 @@ def _annotated(args: argparse.Namespace, capture: Capture) -> Any:
 def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
             summaries: list[dict[str, Any]] | None = None) -> int:
     """The analyzer over the whole capture, its records to the outputs, then the summary and the exit
-    status (module docstring)."""
+    status (module docstring). A one-direction capture is told to the engine (the direction of its
+    first chunk), which then judges only what one line's bytes show."""
     from .io.base import WrongFormat
     from .report import ReportError
 
-    analyzer = _analyzer(args)
     try:
-        outputs = _Outputs(capture, args, one_sided, analyzer.conversation.no_answer_timeout)
+        first, chunks = _opening(capture)
+    except WrongFormat:
+        return _wrong_format(capture)
+    analyzer = _analyzer(args, first.dir if one_sided and first is not None else "both")
+    try:
+        outputs = _Outputs(capture, args, analyzer.conversation.no_answer_timeout)
     except ReportError as exc:
         return _error(str(exc))
     try:
         with _progress(capture) as progress:
-            _read_all(capture, analyzer, outputs, progress)
-    except WrongFormat:
-        return _wrong_format(capture)
+            _read_all(chunks, analyzer, outputs, progress)
     finally:
         outputs.view.flush()  # the lines decoded so far are out, however the loop ended (Ctrl-C included)
     outputs.end(analyzer.close())
-    summary = _summary(analyzer, outputs, capture.report)
+    summary = _summary(analyzer, capture.report)
     _publish(summary, capture, outputs, summaries)
     return _exit_status(summary, analyzer, capture)
 
 
-def _analyzer(args: argparse.Namespace) -> Any:
-    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``, ``--readings``)."""
+def _analyzer(args: argparse.Namespace, directions: Directions) -> Any:
+    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``, ``--readings``) and the
+    lines the capture holds."""
     from .analyzer import Analyzer
 
-    options: dict[str, Any] = {"readings": args.readings}
+    options: dict[str, Any] = {"readings": args.readings, "directions": directions}
     if args.no_answer_timeout is not None:
         options["no_answer_timeout"] = args.no_answer_timeout
     if args.storm_limit is not None:
@@ -227,15 +235,13 @@ def _analyzer(args: argparse.Namespace) -> Any:
 
 
 class _Outputs:
-    """Where a decode's records go: the view (through ``--only-violations`` and ``--header``), the
-    one-direction tally, the HTML report and the annotated pcapng. ``wants_records``: False when only
-    the summary is shown (the analyzer then counts its verdicts and makes no record)."""
+    """Where a decode's records go: the view (through ``--only-violations`` and ``--header``), the HTML
+    report and the annotated pcapng. ``wants_records``: False when only the summary is shown (the
+    analyzer then counts its verdicts and makes no record)."""
 
-    def __init__(self, capture: Capture, args: argparse.Namespace, one_sided: bool, timeout: float) -> None:
-        from .records import Tally
+    def __init__(self, capture: Capture, args: argparse.Namespace, timeout: float) -> None:
         from .view import make_view
 
-        self.tally = Tally() if one_sided else None
         self.annotate = _annotated(args, capture)
         self.html_report = None
         if args.report is not None:
@@ -246,54 +252,56 @@ class _Outputs:
         self.view = make_view("text" if summary_only else args.format, sys.stdout, args.color, live=False)
         self.show = None if summary_only else _Filter(args.only_violations, args.header)
         # every record to the view, in one call a batch
-        self.plain = (not summary_only and not args.only_violations and not args.header and self.tally is None
-                      and self.html_report is None)
-        self.wants_records = not (summary_only and self.tally is None and self.html_report is None
-                                  and self.annotate is None)
+        self.plain = not summary_only and not args.only_violations and not args.header
+        self.wants_records = not summary_only or self.chunk_by_chunk
+
+    @property
+    def chunk_by_chunk(self) -> bool:
+        """Do records go to an output a chunk at a time (the annotated pcapng, the HTML report)?"""
+        return self.annotate is not None or self.html_report is not None
+
+    def take(self, chunk: Chunk, analyzer: Any) -> None:
+        """One chunk through the analyzer (through the HTML report when there is one, which asks the
+        engine after each line), its records to the annotated pcapng with it and to the view."""
+        if self.html_report is not None:
+            records = self.html_report.feed(analyzer, chunk)
+        else:
+            records = analyzer.feed(chunk)
+        if self.annotate is not None:
+            self.annotate.write(chunk, records)
+        self.emit(records)
 
     def emit(self, records: list[Any]) -> None:
-        """Records to every output that takes them (to the view in one call)."""
+        """Records to the view (in one call), through ``--only-violations`` and ``--header``."""
         if self.plain:
             self.view.write_many(records)
             return
-        tally, show, html_report = self.tally, self.show, self.html_report
-        shown: list[Any] = []
-        try:
-            for record in records:
-                if tally is not None:
-                    record = _one_sided(record)
-                    if record is None:
-                        continue
-                    tally.add(record)
-                if show is not None and show(record):
-                    shown.append(record)
-                if html_report is not None:
-                    html_report.add(record)
-        finally:  # Ctrl-C too: the records taken are shown
-            self.view.write_many(shown)
+        show = self.show
+        if show is not None:
+            self.view.write_many([record for record in records if show(record)])
 
     def end(self, records: list[Any]) -> None:
         """The records of the end of the data; the annotated pcapng is closed with them."""
         if self.annotate is not None:
             self.annotate.verdicts(records)
             self.annotate.close()
+        if self.html_report is not None:
+            for record in records:
+                self.html_report.add(record)
         self.emit(records)
         self.view.flush()
 
 
-def _read_all(capture: Capture, analyzer: Any, outputs: _Outputs, progress: _Progress | _NoProgress) -> None:
-    """Every chunk of the capture through the analyzer: one at a time with its records when annotating
-    (each chunk written with them), else in batches (``Analyzer.feed_many``)."""
-    report = capture.report
-    if outputs.annotate is not None:
-        for chunk in capture:
-            report.give_up_after = None  # data came: the format reads
-            records = analyzer.feed(chunk)
-            outputs.annotate.write(chunk, records)
-            outputs.emit(records)
+def _read_all(chunks: Iterator[Chunk], analyzer: Any, outputs: _Outputs,
+              progress: _Progress | _NoProgress) -> None:
+    """Every chunk of the capture through the analyzer: one at a time when annotating or reporting (each
+    chunk written with its records; the report asks the engine after each line), else in batches
+    (``Analyzer.feed_many``)."""
+    if outputs.chunk_by_chunk:
+        for chunk in chunks:
+            outputs.take(chunk, analyzer)
             progress.update()
         return
-    chunks = _data_came(capture, report)
     if not outputs.wants_records:
         while analyzer.feed_many(chunks):
             progress.update()
@@ -318,9 +326,9 @@ def _wrong_format(capture: Capture) -> int:
                   f"{capture.format} capture{looks}; leave --input-format out to detect the format")
 
 
-def _summary(analyzer: Any, outputs: _Outputs, report: Report) -> dict[str, Any]:
+def _summary(analyzer: Any, report: Report) -> dict[str, Any]:
     """The summary record, with the capture's problems and notes."""
-    summary: dict[str, Any] = outputs.tally.summary() if outputs.tally is not None else analyzer.summary()
+    summary: dict[str, Any] = analyzer.summary()
     if report.total_problems:
         summary["problems"] = report.total_problems
         summary["problem_messages"] = report.problems[:SUMMARY_PROBLEMS]
@@ -373,16 +381,17 @@ def _few_collections() -> Iterator[None]:
         gc.unfreeze()
 
 
-def _data_came(capture: Capture, report: Report) -> Iterator[Chunk]:
-    """The capture's chunks; from the first on, no longer a wrong format however many problems follow
-    (the first is read here; the others come from the capture's own iterator, through ``chain``)."""
+def _opening(capture: Capture) -> tuple[Chunk | None, Iterator[Chunk]]:
+    """The capture's first chunk (None: it holds none) and all its chunks; from the first on, no longer a
+    wrong format however many problems follow (the others come from the capture's own iterator, through
+    ``chain``)."""
     import itertools
 
     chunks = iter(capture)
     for first in chunks:
-        report.give_up_after = None
-        return itertools.chain((first,), chunks)
-    return chunks
+        capture.report.give_up_after = None
+        return first, itertools.chain((first,), chunks)
+    return None, chunks
 
 
 def _print_problems(report: Report, at_most: int | None = None) -> None:
@@ -391,19 +400,6 @@ def _print_problems(report: Report, at_most: int | None = None) -> None:
         print(f"xac1 decode: {problem}", file=sys.stderr)
     if report.total_problems > len(shown):
         print(f"xac1 decode: ... and {report.total_problems - len(shown)} more problem(s)", file=sys.stderr)
-
-
-def _one_sided(record: Any) -> Any:
-    """A record of a one-direction capture, keeping only the violations one frame's bytes show (the
-    sender's duty, docs/protocol.md "Violation codes"): the others need the missing direction."""
-    if record.type == "timeout":
-        return None
-    keep = tuple(code for code in record.violations if spec.VIOLATION_TABLE[code].duty == spec.SENDER)
-    details = tuple(d for d in record.details if any(d.endswith(f"({code})") for code in keep))
-    changes: dict[str, Any] = {"violations": keep, "details": details}
-    if record.type == "frame":
-        changes.update(reply_to=None, latency_s=None)
-    return record._replace(**changes)
 
 
 class _Filter:

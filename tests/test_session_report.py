@@ -112,22 +112,22 @@ def test_time_bins_coarsen_without_losing_counts(xs, limit):
 
 def test_alarm_history_reaction_and_latch_from_the_gallery_session():
     """The gallery session (captures/README.md): alarm 01 answers the letter-O command, the host ignores
-    it (sends 0RS), the device answers 0RS normally (latch-broken) which ends the latch."""
+    it (sends 0RS), the device answers 0RS normally (latch-broken: the engine holds the latch), the reset
+    answered 0%C00 ends it. The span is the engine's latch, never a model of the report's own."""
     from sniffer.io.registry import Capture
 
     agg = SessionAggregator()
     with Capture([str(CAPTURES / "socat-xv.log")], "socat") as capture:
         analyzer = Analyzer()
         for chunk in capture:
-            for r in analyzer.feed(chunk):
-                agg.add(r)
+            agg.feed(analyzer, chunk)
         for r in analyzer.close():
             agg.add(r)
     agg.finish(analyzer.summary())
     [alarm] = agg.alarms
     assert (alarm.code, alarm.answered, alarm.reaction) == (spec.ALARM_COMM, "0RP", "0RS")
-    assert alarm.ended == "a normal 0RS answer (latch-broken)"
-    assert alarm.latched_for is not None and 0.1 < alarm.latched_for < 0.5
+    assert alarm.ended == "reset (0%C answered)"
+    assert alarm.latched_for is not None and 0.1 < alarm.latched_for < 1.0
     assert agg.exchange_count == 8 and agg.mark_count == 7
     assert {code for code, _ in agg.sides} == {"letter-o", "echo-mismatch", "alarm-ignored", "latch-broken",
                                                "bad-length", "bad-terminator", "no-answer"}
@@ -305,8 +305,10 @@ CLOSE_MARKS = ((0.00, H, b"0rpa\r\n"), (0.01, D, b"0%%01\r\n"), (0.20, H, b"0RV\
 
 
 def close_marks_aggregate() -> SessionAggregator:
-    agg = SessionAggregator()
-    for r in analyze([Chunk(1_795_000_000.0 + t, d, raw) for t, d, raw in CLOSE_MARKS]):
+    agg, analyzer = SessionAggregator(), Analyzer()
+    for t, d, raw in CLOSE_MARKS:
+        agg.feed(analyzer, Chunk(1_795_000_000.0 + t, d, raw))
+    for r in analyzer.close():
         agg.add(r)
     return agg
 

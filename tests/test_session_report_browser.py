@@ -194,7 +194,8 @@ def test_live_sniffer_session_report_in_chromium(browser, tmp_path):
     """``xac1 sniff --report`` over a real Y-cable of ptys, the simulator as the device (echoing 0WP
     wrongly) and the client as the host (a letter-O command, homing, a move): after Ctrl-C the report is
     written; in Chromium it loads clean, holds every exchange and violation the sniffer printed, draws
-    the axis position with the homing and the move, and its screenshot is not blank."""
+    the axis position with the homing and the move (from the start the engine knew), and its screenshot
+    is not blank."""
     from sniffer_wire import YCable
     from test_sniffer_cli import Cli, no_traceback
 
@@ -212,10 +213,11 @@ def test_live_sniffer_session_report_in_chromium(browser, tmp_path):
             client.transact(b"ORV\r\n")  # letter O: alarm 01 answers
             client.reset_alarm()
             client.home()
+            client.read_current()  # the engine learns where homing left the axis (silent item 7)
             client.transact(b"0WP19302004000\r\n")  # the device echoes it wrongly (echo-differs)
             client.move_point(1)
             client.read_current()
-            cli.records(14)  # every frame seen live before stopping
+            cli.records(16)  # every frame seen live before stopping
         assert cli.finish() == 0
         no_traceback(cli)
     assert any("report written to" in line for line in cli.stderr), cli.stderr
@@ -230,8 +232,9 @@ def test_live_sniffer_session_report_in_chromium(browser, tmp_path):
           return {positions: by("position answered").y, homing: by("homing").x.length,
                   moves: by("move").x.filter(v => v === null).length};
         })()""")
-        # homing (from an unknown position: not drawn as a move), the move to point 1, then 0RC
-        assert axis["positions"] == [0, 0x4000, 0x4000] and axis["homing"] == 1 and axis["moves"] == 1
+        # homing (from an unknown position: not drawn as a move), 0RC, the move to point 1 from where the
+        # engine knew the axis (the report asks it), then 0RC
+        assert axis["positions"] == [0, 0, 0x4000, 0x4000] and axis["homing"] == 1 and axis["moves"] == 1
         check_screenshot(page, tmp_path / "live.png")
     finally:
         page.close()

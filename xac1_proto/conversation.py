@@ -10,6 +10,12 @@ window closed. ``knowledge`` holds what is known of the device: each ``Fact`` is
 (established by the conversation or an out-of-band event: judged) or ``learnt`` (read from an answer
 with nothing to compare it with: judged from then on). No clock, no port, no thread: times come in.
 
+One direction (``directions="host"`` or ``"device"``: a capture that holds one line's bytes only). Only
+what one direction's bytes show is judged: each frame and junk run by its own bytes, the sender's duties
+(docs/protocol.md "Violation codes", ``spec.VIOLATION_TABLE[code].duty == spec.SENDER``). Nothing pairs,
+latches or waits, since the other direction cannot be in the data: a host line owed an answer is counted
+(``unanswerable``), never queued, so memory stays flat whatever the capture's length.
+
 Pairing (docs/protocol.md "Framing": strict request/answer; "Violation codes": first in, first out).
 A host line that must be answered waits in a queue: a well-formed command, and an *error* (a host frame
 with an error-severity violation, or a host junk run ending in LF) which must get an alarm answer
@@ -104,6 +110,9 @@ HOST: Final = spec.HOST_SIDE
 DEVICE: Final = spec.DEVICE_SIDE
 _ALARM: Final = spec.ALARM_HEADER  # the alarm answer's header (0%%)
 _RESET: Final = spec.RESET_HEADER  # the alarm reset's (0%C)
+Directions = Literal["both", "host", "device"]
+BOTH: Final = "both"  # the usual capture: both lines' bytes
+DIRECTIONS: Final[tuple[Directions, ...]] = (BOTH, HOST, DEVICE)
 STROKE_END: Final = spec.UNKNOWN_POSITION - 1  # the farthest position a move can reach (silent item 5)
 
 _BEHAVIOUR: Final = 'docs/protocol.md "Behaviour the vendor text states"'
@@ -303,17 +312,24 @@ class Conversation:
     ``no_answer_timeout``: seconds after a line's last byte before silence is ``no-answer`` (moves get
     more); ``storm_limit``: ``0%%01`` answers in a row after which a host command is ``comm-error-storm``;
     ``speeds``: the speed table that prices a move's answer window; ``readings``: the severity of the
-    rules that are our reading of a silent text (``notice``, the default, or ``error``: ``rules``).
+    rules that are our reading of a silent text (``notice``, the default, or ``error``: ``rules``);
+    ``directions``: the lines the data holds (``both``, or one of ``host``, ``device``: module docstring).
     """
 
     def __init__(self, *, no_answer_timeout: float = spec.NO_ANSWER_TIMEOUT_S,
                  storm_limit: int = spec.STORM_LIMIT,
                  speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,
-                 readings: rules.Readings = rules.DEFAULT_READINGS) -> None:
+                 readings: rules.Readings = rules.DEFAULT_READINGS,
+                 directions: Directions = BOTH) -> None:
         if no_answer_timeout <= 0 or storm_limit < 1:
             raise ValueError("no_answer_timeout must be > 0 and storm_limit >= 1")
         if readings not in rules.READINGS:
             raise ValueError(f"readings must be one of {', '.join(rules.READINGS)}, got {readings!r}")
+        if directions not in DIRECTIONS:
+            raise ValueError(f"directions must be one of {', '.join(DIRECTIONS)}, got {directions!r}")
+        self.directions = directions
+        self.one_way = directions != BOTH  # one line's bytes only: nothing pairs, latches or waits
+        self.unanswerable = 0  # one way: host lines owed an answer the data cannot hold (counted, not kept)
         self.readings = readings
         self._severity = rules.severities(readings)
         self.no_answer_timeout = no_answer_timeout
@@ -476,6 +492,10 @@ class Conversation:
             raw = bytes(raw)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
         found = [*self._graded(violations)]
+        if self.one_way:  # no command can be in the data: only what the answer's own bytes show
+            out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), None, None,
+                                 t_first, t_last, None)))
+            return out
         line, skipped = self._pair(header, t_first)
         if skipped:
             out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
@@ -579,8 +599,10 @@ class Conversation:
         return out
 
     def cut_short(self) -> int:
-        """Lines still owed an answer whose window had not closed when the data ended; forgets them."""
-        n = sum(1 for w in self._queue if w.owed)
+        """Lines still owed an answer whose window had not closed when the data ended, and (one way) those
+        whose answer the data cannot hold; forgets them."""
+        n = sum(1 for w in self._queue if w.owed) + self.unanswerable
+        self.unanswerable = 0
         self._queue.clear()
         self._motion = None
         return n
@@ -609,6 +631,9 @@ class Conversation:
             window = self.answer_window(frame) if is_move and frame is not None else self.no_answer_timeout
         line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + window, window,
                      overlapped, is_move, plain)
+        if self.one_way:  # its answer cannot be in the data: counted, not kept
+            self.unanswerable += 1
+            return line
         self._queue.append(line)
         if is_move and not overlapped and self.knowledge.latched.value is None:
             self._motion = line

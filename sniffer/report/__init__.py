@@ -2,9 +2,12 @@
 
 How this works: ``SessionReport.open(path, sources)`` checks, before any work, that plotly (the
 ``report`` extra) is installed and that ``path`` can be written, else raises ``ReportError`` (a
-``ValueError``) with a message saying what to do. Its ``add`` takes every record the analyzer makes
-(``aggregate.SessionAggregator``: bounded memory); ``write(summary)`` renders the page
-(``page.render_page``) and writes it atomically. The verdicts are the records' own (docs/protocol.md
+``ValueError``) with a message saying what to do. Its ``feed(analyzer, chunk)`` passes a chunk through
+the analyzer and takes its records (a line at a time, the engine asked after each line: ``decode``), or
+``add`` takes every record the analyzer makes once ``judged_by`` named its engine (the live sniffer);
+``aggregate.SessionAggregator`` keeps bounded memory; ``write(summary)`` renders the page
+(``page.render_page``) and writes it atomically. The verdicts are the records' own, and what the
+conversation established (alarm spans, positions, move estimates) is the engine's (docs/protocol.md
 "Violation codes"): the report draws them and judges nothing.
 
 Why plotly: it writes offline HTML with its JavaScript inlined, draws zoomable, clickable plots of
@@ -16,10 +19,16 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..records import Record
 from .aggregate import Limits, SessionAggregator
+
+if TYPE_CHECKING:
+    from xac1_proto.chunk import Chunk
+    from xac1_proto.conversation import Conversation
+
+    from ..analyzer import Analyzer
 
 EXTRA_HINT = "pip install 'xac1-proto[report]'"
 
@@ -64,6 +73,15 @@ class SessionReport:
         if no_answer_timeout is not None:
             options["no_answer_timeout"] = no_answer_timeout
         return cls(target, SessionAggregator(**options))
+
+    def feed(self, analyzer: Analyzer, chunk: Chunk) -> list[Record]:
+        """``chunk`` through ``analyzer``, its records taken (``SessionAggregator.feed``); returns them."""
+        return self.aggregator.feed(analyzer, chunk)
+
+    def judged_by(self, engine: Conversation) -> None:
+        """The engine whose records ``add`` takes: asked what it established (alarm spans, positions,
+        moves)."""
+        self.aggregator.engine = engine
 
     def add(self, record: Record) -> None:
         self.aggregator.add(record)

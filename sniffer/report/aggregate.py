@@ -10,9 +10,19 @@ docs/protocol.md "Violation codes"). Memory is bounded whatever the capture's le
   width doubles when there are more than ``Limits.bins`` bins), which draws the whole capture;
 - answer latency: a histogram per command with two significant digits of milliseconds (``LogHistogram``:
   at most 90 buckets a decade) and latency over time (points up to a cap, then per-bin mean and max);
-- axis position (0RC, 0MP and 0MV answers; moves with the duration the rulebook estimated),
-  homing and alarm marks: points up to a cap, then every other point is dropped (the shape stays);
+- axis position, homing and alarm marks: points up to a cap, then every other point is dropped (the
+  shape stays);
 - the alarm history: the first ``Limits.alarms`` alarms, the rest counted.
+What the conversation established is the engine's, never a model of the report's own: the aggregate asks
+the engine that judged the records (``engine``, a ``Conversation``) for the latched alarm
+(``knowledge.latched``: an alarm's span is the engine's latch, from the answer that latched it to the one
+that cleared it) and a move's estimated time and start (``move_time`` and ``knowledge.position`` when the
+command was judged: a move is drawn only from a start the engine knew). The positions drawn are those the
+0RC, 0MP and 0MV answers give (a record's field, as its latency is; none for FFFFFF).
+``feed(analyzer, chunk)`` passes a chunk through the analyzer a line at a time and asks the engine after
+each line, so what it says belongs to that line's records (the records themselves do not depend on the
+chunking); ``add(record)`` (the live sniffer, a chunk at a time) asks it after the record's chunk.
+Without an engine, alarm spans and moves are left out.
 Captures without time (raw files and the like) are drawn against the record number instead of time.
 """
 
@@ -20,13 +30,21 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from xac1_proto import frames, spec
+from xac1_proto.chunk import Chunk
+from xac1_proto.conversation import UNKNOWN, Conversation, Fact
 
 from ..records import FrameRecord, JunkRecord, Record, Tally, TimeoutRecord
 from ..view import show_raw
+
+if TYPE_CHECKING:
+    from ..analyzer import Analyzer
+
+_AXIS_ANSWERS = frozenset({"0RC", *spec.MOVE_HEADERS})  # answers after which the position is drawn
 
 
 @dataclass(frozen=True)
@@ -82,10 +100,17 @@ class TimeBins:
         if self.origin is None:
             self.origin = math.floor(x)
         index = int((x - self.origin) // self.width)
-        stats = self.bins.setdefault(index, {}).setdefault(key, [0, 0.0, -math.inf])
-        stats[0] += 1
-        stats[1] += value
-        stats[2] = max(stats[2], value)
+        keys = self.bins.get(index)
+        if keys is None:
+            keys = self.bins[index] = {}
+        stats = keys.get(key)
+        if stats is None:
+            keys[key] = [1, value, value]
+        else:
+            stats[0] += 1
+            stats[1] += value
+            if value > stats[2]:
+                stats[2] = value
         while len(self.bins) > self.limit:
             self._coarsen()
 
@@ -167,7 +192,7 @@ class _Command:
     header: str | None
     frame: frames.Frame | None
     kept: int | None  # index in ``records`` when kept whole
-    window_s: float | None = None  # the answer window the rulebook gave it
+    move: tuple[float, int | None] | None = None  # a move: the engine's estimated time, its start position
 
 
 @dataclass
@@ -177,9 +202,9 @@ class SessionAggregator:
     limits: Limits = field(default_factory=Limits)
     sources: list[tuple[str, str]] = field(default_factory=list)  # (file or port, format)
     no_answer_timeout: float = spec.NO_ANSWER_TIMEOUT_S
+    engine: Conversation | None = None  # the engine that judged the records: asked what it established
 
     def __post_init__(self) -> None:
-        self.tally = Tally()
         self.summary: dict[str, Any] | None = None
         self.records: list[dict[str, Any]] = []  # kept whole, in order
         self.dropped_records = 0  # records not kept whole
@@ -204,16 +229,39 @@ class SessionAggregator:
         self.alarms: list[Alarm] = []
         self.alarm_count = 0
         self._waiting: dict[int, _Command] = {}
-        self._position: int | None = None  # the last position an answer told (None: unknown)
+        self._latched: Fact[int] = Fact()  # the engine's latch when last asked
         self._open_alarm: Alarm | None = None
         self._await_reaction: Alarm | None = None
         self.finished = False
 
     # ---- input ----
 
+    def feed(self, analyzer: Analyzer, chunk: Chunk) -> list[Record]:
+        """``chunk`` through ``analyzer`` a line at a time, each line's records added with its engine asked
+        right after that line (module docstring); returns the records, as ``analyzer.feed(chunk)`` would."""
+        self.engine = analyzer.conversation
+        lf = chunk.data.find(b"\n")
+        if lf < 0 or lf == len(chunk.data) - 1:  # the usual chunk: one line, or a part of one
+            return self._line_records(analyzer.feed(chunk))
+        out: list[Record] = []
+        for line in _lines(chunk):
+            out += self._line_records(analyzer.feed(line))
+        return out
+
+    def _line_records(self, records: list[Record]) -> list[Record]:
+        """The records of one line, the engine asked at the last (it stands right after it)."""
+        last = len(records) - 1
+        for k, record in enumerate(records):
+            self._add(record, ask=k == last)
+        return records
+
     def add(self, record: Record) -> None:
-        """One record as the analyzer made it."""
-        self.tally.add(record)
+        """One record as the analyzer made it (the engine, if any, asked as it stands now)."""
+        self._add(record, ask=True)
+
+    def _add(self, record: Record, ask: bool) -> None:
+        """One record; ``ask``: the engine stands right after it (what it established is the record's)."""
+        engine = self.engine if ask else None
         self.total_records += 1
         if record.t is None:
             self.timed = False
@@ -222,30 +270,46 @@ class SessionAggregator:
             self.t_last = record.t if self.t_last is None else max(self.t_last, record.t)
         x = self._x(record)
         kept = self._keep(record, x)
-        side_of = {code: spec.VIOLATION_TABLE[code].side(record.dir) for code in record.violations}
-        for code, side in side_of.items():
+        if record.violations:
+            self._marks(record, x, kept)
+        if isinstance(record, TimeoutRecord):
+            command = self._waiting.pop(record.command, None)
+            if command is not None and command.kept is not None and kept is not None:
+                self.unanswered.append({"from": command.x, "to": x, "header": command.header})
+            answered = None
+        else:
+            answered = self._line(record, x, kept, engine)
+        if engine is not None:
+            self._latch(engine.knowledge.latched, record, x, answered)
+
+    def _marks(self, record: Record, x: float, kept: int | None) -> None:
+        """A record's violations: counted by code and side (``spec.VIOLATION_TABLE[code].side``), binned,
+        and marked where the record is kept whole."""
+        for code in record.violations:
+            side = spec.VIOLATION_TABLE[code].side(record.dir)
             self.sides[(code, side)] += 1
             self.mark_count += 1
             self.bins.add(x, "violation:" + code)
             if kept is not None:
                 self.marks.append({"x": x, "side": side, "code": code, "record": kept})
-        if isinstance(record, TimeoutRecord):
-            command = self._waiting.pop(record.command, None)
-            if command is not None and command.kept is not None and kept is not None:
-                self.unanswered.append({"from": command.x, "to": x, "header": command.header})
-            return
+
+    def _line(self, record: FrameRecord | JunkRecord, x: float, kept: int | None,
+              engine: Conversation | None) -> str | None:
+        """A frame or junk run: counted by direction, commands remembered until answered; the header of
+        the command an answer replied to."""
         self.bins.add(x, f"{record.dir}:{record.type}")
         if isinstance(record, FrameRecord):
             if record.dir == "host":
-                self._host_frame(record, x, kept)
-            else:
-                self._device_frame(record, x, kept)
-        elif record.dir == "host" and record.raw.endswith(spec.FRAME_END):
+                self._host_frame(record, x, kept, engine)
+                return None
+            return self._device_frame(record, x, kept, engine)
+        if record.dir == "host" and record.raw.endswith(spec.FRAME_END):
             # a junk line: the device owes it an alarm answer (docs/protocol.md "Behaviour the vendor
             # text states"), so the rulebook may say no-answer for it
             self._waiting[record.i] = _Command(x, record.t, None, None, kept)
             if len(self._waiting) > self.limits.waiting:
                 del self._waiting[next(iter(self._waiting))]
+        return None
 
     def _x(self, record: Record) -> float:
         """Where a record goes on the time axis: its time, or its number in a capture without time."""
@@ -266,8 +330,13 @@ class SessionAggregator:
         self.records.append(_describe(record, x))
         return len(self.records) - 1
 
-    def _host_frame(self, record: FrameRecord, x: float, kept: int | None) -> None:
-        self._waiting[record.i] = _Command(x, record.t, record.header, record.frame, kept, record.window_s)
+    def _host_frame(self, record: FrameRecord, x: float, kept: int | None,
+                    engine: Conversation | None) -> None:
+        move = None
+        if engine is not None and record.header in spec.MOVE_HEADERS and record.frame is not None:
+            start = engine.knowledge.position
+            move = (engine.move_time(record.frame), start.value if start.judged else None)
+        self._waiting[record.i] = _Command(x, record.t, record.header, record.frame, kept, move)
         if len(self._waiting) > self.limits.waiting:
             del self._waiting[next(iter(self._waiting))]
         alarm = self._await_reaction
@@ -277,89 +346,85 @@ class SessionAggregator:
                 alarm.reaction_after = record.t - alarm.x
             self._await_reaction = None
 
-    def _device_frame(self, record: FrameRecord, x: float, kept: int | None) -> None:
+    def _device_frame(self, record: FrameRecord, x: float, kept: int | None,
+                      engine: Conversation | None) -> str | None:
+        """An answer: its exchange, its alarm or the axis position it gives; the header of the command it
+        answered."""
         command = self._waiting.pop(record.reply_to, None) if record.reply_to is not None else None
         if command is not None:
-            self.exchange_count += 1
-            if command.kept is not None and kept is not None:
-                self.exchanges.append({"from": command.x, "to": x, "header": command.header,
-                                       "command": command.kept, "answer": kept})
-            if record.latency_s is not None:
-                header = command.header or "?"
-                ms = record.latency_s * 1000.0
-                self.latency_hist.setdefault(header, LogHistogram()).add(ms)
-                self.latency_points.add((x, ms, header, kept))
-                self.latency_bins.add(x, header, ms)
+            self._exchange(command, record, x, kept)
         frame = record.frame
-        if frame is None:
-            return
         if isinstance(frame, frames.AlarmAnswer):
-            self._alarm(record, frame, x, command, kept)
-            return
-        self._alarm_ended(record, x)
-        self._axis_answer(record, frame, x, command, kept)
+            self._alarm_answer(frame, x, kept)
+        elif frame is not None and record.header in _AXIS_ANSWERS:
+            self._axis_answer(record, frame, x, command, kept)
+        return command.header if command is not None else None
 
-    def _alarm(self, record: FrameRecord, frame: frames.AlarmAnswer, x: float,
-               command: _Command | None, kept: int | None) -> None:
+    def _exchange(self, command: _Command, record: FrameRecord, x: float, kept: int | None) -> None:
+        """A command answered: the exchange (drawn when both ends are kept) and its latency."""
+        self.exchange_count += 1
+        if command.kept is not None and kept is not None:
+            self.exchanges.append({"from": command.x, "to": x, "header": command.header,
+                                   "command": command.kept, "answer": kept})
+        if record.latency_s is not None:
+            header = command.header or "?"
+            ms = record.latency_s * 1000.0
+            self.latency_hist.setdefault(header, LogHistogram()).add(ms)
+            self.latency_points.add((x, ms, header, kept))
+            self.latency_bins.add(x, header, ms)
+
+    def _alarm_answer(self, frame: frames.AlarmAnswer, x: float, kept: int | None) -> None:
+        """An alarm answer: its mark; the latched alarm answered again is a repeat, and the host's next
+        frame its reaction."""
         self.alarm_marks.add((x, frame.code, kept))
-        if frame.code == spec.ALARM_NONE:
+        alarm = self._open_alarm
+        if alarm is not None and alarm.code == frame.code:
+            alarm.repeats += 1
+            self._await_reaction = alarm if alarm.reaction is None else None
+
+    def _latch(self, latched: Fact[int], record: Record, x: float, answered: str | None) -> None:
+        """The engine's latch after ``record`` (an answer to an ``answered`` command): an alarm span opens
+        where it latches a code and ends where it clears, changes or becomes unknown."""
+        before, self._latched = self._latched, latched
+        if latched.value == before.value:
             return
-        self._position = None
-        open_alarm = self._open_alarm
-        if open_alarm is not None and open_alarm.code == frame.code:
-            open_alarm.repeats += 1
-            self._await_reaction = open_alarm if open_alarm.reaction is None else None
+        alarm = self._open_alarm
+        if alarm is not None:
+            alarm.ended = _why_ended(record, latched)
+            alarm.latched_for = self._span(alarm, x)
+            self._open_alarm = self._await_reaction = None
+        if latched.value is None or not isinstance(record, FrameRecord):
             return
         self.alarm_count += 1
-        alarm = Alarm(x, frame.code, spec.alarm_meaning(frame.code),
-                      command.header if command is not None else None, record.i)
+        alarm = Alarm(x, latched.value, spec.alarm_meaning(latched.value), answered, record.i)
         if len(self.alarms) < self.limits.alarms:
             self.alarms.append(alarm)
-        if open_alarm is not None and open_alarm.ended is None:
-            open_alarm.ended = f"followed by alarm {frame.code:02X}"
-            open_alarm.latched_for = self._span(open_alarm, x)
-        self._open_alarm = alarm
-        self._await_reaction = alarm
-
-    def _alarm_ended(self, record: FrameRecord, x: float) -> None:
-        alarm = self._open_alarm
-        if alarm is None:
-            return
-        if record.header == spec.RESET_HEADER:
-            alarm.ended = "reset (0%C answered)"
-        else:
-            broken = " (latch-broken)" if "latch-broken" in record.violations else ""
-            alarm.ended = f"a normal {record.header or 'unknown'} answer{broken}"
-        alarm.latched_for = self._span(alarm, x)
-        self._open_alarm = None
+        self._open_alarm = self._await_reaction = alarm
 
     def _span(self, alarm: Alarm, x: float) -> float | None:
         return x - alarm.x if self.timed else None
 
-    def _axis_answer(self, record: FrameRecord, frame: frames.Frame, x: float,
-                     command: _Command | None, kept: int | None) -> None:
-        start = self._position
-        estimate = None
-        if command is not None and command.window_s is not None and record.header in spec.MOVE_HEADERS:
-            # the rulebook's answer window is the estimated move time doubled plus the plain timeout
-            estimate = max(0.0, (command.window_s - self.no_answer_timeout) / 2.0)
+    def _axis_answer(self, record: FrameRecord, frame: frames.Frame, x: float, command: _Command | None,
+                     kept: int | None) -> None:
+        """0RC, 0MP, 0MV answers: the position the answer gives (none for FFFFFF, "not homed"), the homing
+        a 0MP0 answer reports, and the move from the start the engine knew over its estimate."""
         pos = getattr(frame, "pos", None)
-        if record.header in ("0RC", "0MP", "0MV") and pos is not None:
-            self._position = None if pos == spec.UNKNOWN_POSITION else pos
-        if record.header not in ("0RC", "0MP", "0MV") or pos is None or pos == spec.UNKNOWN_POSITION:
+        if pos is None or pos == spec.UNKNOWN_POSITION:
             return
         self.positions.add((x, pos, record.header, kept))
         if isinstance(frame, frames.MovePointAnswer) and frame.n == 0:
             self.homings.add(x)
-        if command is not None and estimate is not None:
+        if command is not None and command.move is not None and command.move[1] is not None:
+            estimate, start = command.move
             est_end = command.x + estimate if self.timed else x
             self.moves.add((command.x, min(est_end, x), x, start, pos, record.header))
 
     # ---- output ----
 
     def finish(self, summary: dict[str, Any] | None = None) -> None:
-        """No more records; ``summary`` is the analyzer's own (it knows the commands still waiting)."""
-        self.summary = summary if summary is not None else self.tally.summary()
+        """No more records; ``summary`` is the analyzer's own (the counts are its, never counted twice;
+        none: nothing was analyzed)."""
+        self.summary = summary if summary is not None else Tally().summary()
         self.finished = True
 
     @property
@@ -382,6 +447,30 @@ class SessionAggregator:
                          "meaning": vspec.meaning if vspec else "",
                          "section": vspec.section if vspec else ""})
         return rows
+
+
+def _lines(chunk: Chunk) -> Iterator[Chunk]:
+    """``chunk`` cut after each LF: pieces with its time, direction and line error."""
+    data, start = chunk.data, 0
+    end = data.find(b"\n") + 1
+    while end:
+        yield Chunk(chunk.t, chunk.dir, data[start:end], chunk.error)
+        start, end = end, data.find(b"\n", end) + 1
+    if start < len(data):
+        yield Chunk(chunk.t, chunk.dir, data[start:], chunk.error)
+
+
+def _why_ended(record: Record, latched: Fact[int]) -> str:
+    """What ended an alarm's span: the record after which the engine's latch cleared, changed or became
+    unknown."""
+    if latched.status == UNKNOWN:
+        return "unknown from here (the engine lost track: an answer missing or garbled)"
+    frame = record.frame if isinstance(record, FrameRecord) else None
+    if isinstance(frame, frames.AlarmAnswer):
+        return f"followed by alarm {frame.code:02X}"
+    if isinstance(record, FrameRecord) and record.header == spec.RESET_HEADER:
+        return "reset (0%C answered)"
+    return f"a {record.header or 'unknown'} answer" if isinstance(record, FrameRecord) else record.type
 
 
 def _describe(record: Record, x: float) -> dict[str, Any]:

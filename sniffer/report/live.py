@@ -21,6 +21,7 @@ class ReportingSession(Session):
                  report: SessionReport, **shell: Any) -> None:
         """``shell``: ``Session``'s ``output``, ``err`` and ``program``."""
         super().__init__(analyzer, view, recorder, on_record=report.add, **shell)
+        report.judged_by(analyzer.conversation)  # records come a chunk at a time: asked after each
         self.report = report
 
     def close(self, now: float | None, summary: bool = True) -> None:

@@ -17,6 +17,7 @@ from xac1_proto.output_file import write_output
 from xac1_proto.pages import figures as fragments
 from xac1_proto.pages import render
 
+from ..records import Tally
 from . import plots
 from .aggregate import SessionAggregator
 
@@ -45,7 +46,7 @@ def _duration(seconds: float | None) -> str:
 
 def context(agg: SessionAggregator, title: str = "XA-C1 session report") -> dict[str, Any]:
     """Everything the template shows."""
-    summary = agg.summary if agg.summary is not None else agg.tally.summary()
+    summary = agg.summary if agg.summary is not None else Tally().summary()
     figures: dict[str, Any] = {}
     if not agg.empty:
         figures["timeline"] = plots.timeline(agg)
