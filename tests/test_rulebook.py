@@ -291,3 +291,54 @@ def test_every_rule_row_is_applied():
         encoding="utf-8")
     for r in rules.RULE_ROWS:
         assert r.name == r.code or f'"{r.name}"' in source, r.name
+
+
+# ---- the latch's state machine (issue 35, item 2) ----
+
+def test_the_latch_table_and_the_doc_rule_table_say_the_same():
+    """Every rule a cell of the latch's state machine (``latch.LATCH``, ``latch.HOST_DUTY``) names is a row
+    of the rulebook and of docs/protocol.md's violation table; every rule of the latch's codes
+    (latch-broken, estop-cleared, the storm's) is named by a cell; and the page's latch table is the
+    declared one, cell for cell."""
+    from xac1_proto import latch
+
+    page = docgen.DEFAULT_PATH.read_text(encoding="utf-8")
+    violations = page.split("<!-- generated: violations -->")[1].split(docgen.END)[0]
+    doc_rules = {cells[1].strip(): cells[0].strip(" `") for cells in
+                 (line.strip("|").split("|") for line in violations.splitlines() if line.startswith("| `"))}
+    named = latch.rules_named()
+    assert named <= set(doc_rules) and named <= set(rules.RULES)
+    latch_codes = {"latch-broken", "estop-cleared", "comm-error-storm", "storm-recovery"}
+    assert {r.name for r in rules.RULE_ROWS if r.code in latch_codes} == named
+    block = page.split("<!-- generated: latch -->")[1].split(docgen.END)[0]
+    rows = [line for line in block.splitlines() if line.startswith("| ") and not line.startswith("| event")]
+    assert len(rows) == len(latch.LatchEvent)
+    for line, event in zip(rows, latch.LatchEvent, strict=True):
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        for cell, state in zip(cells[1:], latch.LatchState, strict=True):
+            rule = latch.LATCH[(state, event)].rule
+            assert cell.split(" → ")[0] == (f"`{rule}`" if rule else "-")
+
+
+@pytest.mark.parametrize(("script", "state"), [
+    ((), "FREE"),
+    (((b"0RV\r\n", b"0%%08\r\n"),), "HELD"),
+    (((b"0RV\r\n", b"0%%0E\r\n"),), "STOP_UNSEEN"),
+    (((b"0RV\r\n", b"0%%08\r\n"), (b"0RV\r\n", b"0%%0E\r\n")), "STOP_UNSEEN_OVER"),
+])
+def test_the_latch_state_is_read_from_what_the_line_showed(script, state):
+    """``Conversation.latch_state``: nothing latched, an alarm latched, 0E with the stop input unseen (it
+    may have been released), and 0E over an alarm held under it until a reset (vendor §6; silent item 3)."""
+    _, c = talk(*script)
+    assert c.latch_state().name == state
+
+
+def test_the_stop_input_known_pressed_is_the_stop_state():
+    """A caller that drives the stop input: pressed, 0E latches with the input known pressed (STOP); a
+    reset then answered 0%C00 is ``estop-cleared`` in every state (vendor §6: the reset clears every
+    alarm but emergency stop)."""
+    c = Conversation()
+    c.stop_input(True)
+    assert c.latch_state().name == "STOP"
+    out = c.host_frame(b"0%C\r\n", 0.0, 0.0) + c.device_frame(b"0%C00\r\n", 0.01, 0.01)
+    assert codes(out) == ["estop-cleared"] and c.knowledge.latched.value == spec.ALARM_ESTOP
