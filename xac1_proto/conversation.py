@@ -282,11 +282,8 @@ class Conversation:
         readings; its sentence is ``sentence(*values)``, made only when shown."""
         return Violation.said(rules.RULES[rule].code, rule, self._severity[rule], sentence, *values)
 
-    def _read_command(self, raw: bytes) -> Reading:
+    def _regraded(self, reading: Reading) -> Reading:
         """The decoder's reading of a host line (``codec.read_frame``), graded under ``readings``."""
-        reading = read_frame(raw, spec.COMMAND)
-        if not reading.violations or self.readings == rules.DEFAULT_READINGS:
-            return reading
         violations = self._graded(reading.violations)
         return reading._replace(violations=violations,
                                 error=reading.frame is None or any(v.is_error for v in violations))
@@ -389,7 +386,10 @@ class Conversation:
         self._next_i = i + 1
         if type(raw) is not bytes:
             raw = bytes(raw)
-        frame, violations, header, error = self._read_command(raw)
+        reading = read_frame(raw, spec.COMMAND)
+        if reading.violations and self.readings != rules.DEFAULT_READINGS:
+            reading = self._regraded(reading)
+        frame, violations, header, error = reading
         found = [*violations]
         if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
             found += self._host_duties(header, error)
@@ -579,7 +579,7 @@ class Conversation:
         it alone waits); the usual answer is the head's, nothing skipped."""
         queue = self._queue
         chosen = self._line_of(header, t) if queue and header is not None and header != _ALARM else None
-        if chosen is not None and chosen is queue.head:
+        if chosen is not None and chosen is queue[0]:
             queue.popleft()
             self._end_motion(chosen)
             return chosen, _NOTHING_SKIPPED
@@ -689,15 +689,17 @@ class Conversation:
     def _normal_answer(self, line: WaitingLine, header: str, frame: Frame, found: list[Violation]) -> None:
         """A normal answer to a well-formed command: the latch, the pairing, then what a clean exchange
         establishes (judged against the mode before it; silent item 11: communicating gives mode 1)."""
-        self._latch(self.latch_state(), LatchEvent.NORMAL, found, line, None)
+        k = self.knowledge
+        if k.latched.value is not None or k.stop_cleared.value is not None:  # else the latch has nothing
+            self._latch(self.latch_state(), LatchEvent.NORMAL, found, line, None)  # to say (FREE: no rule)
         command = line.frame
         if command is not None and self._pairing(line, command, header, frame, found) \
-                and not _is_error(found):
+                and not (found and _is_error(found)):
             learn = HEADER_RULES[header].learn
             if learn is not None:
                 learn(self, command, frame, found)
             if header != SwitchMode.HEADER:
-                self.knowledge.mode = _MODE_1
+                k.mode = _MODE_1
         else:
             self._outcome_unknown(line)
 
@@ -748,10 +750,10 @@ class Conversation:
     def _latch(self, state: LatchState, event: LatchEvent, found: list[Violation], line: WaitingLine | None,
                code: int | None) -> None:
         """Look ``(state, event)`` up in ``latch.LATCH``: record the rule it breaks, apply its effect."""
-        cell = LATCH[(state, event)]
-        if cell.rule is not None:
-            found.append(self._latch_violation(cell.rule, line, code))
-        _LATCH_EFFECTS[cell.effect](self.knowledge)
+        rule, effect = _LATCH_CELLS[(state, event)]
+        if rule is not None:
+            found.append(self._latch_violation(rule, line, code))
+        effect(self.knowledge)
 
     def _latch_violation(self, rule: str, line: WaitingLine | None, code: int | None) -> Violation:
         """The violation of a latch rule, with the values its sentence needs."""
@@ -1018,6 +1020,8 @@ _LATCH_EFFECTS: Final[dict[Effect, Callable[[Knowledge], None]]] = {
     Effect.RELEASE: _release,
 }
 assert set(_LATCH_EFFECTS) == set(Effect), "every effect is applied"
+# ``latch.LATCH`` with each effect's function (one look-up an event)
+_LATCH_CELLS: Final = {key: (cell.rule, _LATCH_EFFECTS[cell.effect]) for key, cell in LATCH.items()}
 
 
 # ---- what a failed exchange forgets (the ``forget`` column) ----

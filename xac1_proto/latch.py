@@ -22,6 +22,8 @@ from typing import Final, NamedTuple
 class LatchState(Enum):
     """Where the alarm latch stands."""
 
+    __hash__ = object.__hash__  # members are unique: hashed by identity, as they compare
+
     FREE = "nothing latched (or the latch unknown: nothing to repeat)"
     HELD = "an alarm other than emergency stop (0E) latched"
     STOP = "0E latched, the stop input known pressed"
@@ -31,6 +33,8 @@ class LatchState(Enum):
 
 class LatchEvent(Enum):
     """What happens to the latch: an answer to a host line, or the stop input a caller drives."""
+
+    __hash__ = object.__hash__  # members are unique: hashed by identity, as they compare
 
     NORMAL = "a normal answer to a command other than the reset"
     RESET_DONE = "the reset (0%C) answered 0%C00"
@@ -51,6 +55,8 @@ class LatchEvent(Enum):
 
 class Effect(Enum):
     """What an event does to the latch's memory (the engine's ``Knowledge``)."""
+
+    __hash__ = object.__hash__  # members are unique: hashed by identity, as they compare
 
     KEEP = "nothing"
     STOP_OVER = "the latched alarm is held under the stop until a reset"

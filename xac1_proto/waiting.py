@@ -13,7 +13,6 @@ is in time); ``open_at(line, t)`` is its inverse for one line. No clock: times c
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator
 from typing import Final
 
 from . import spec
@@ -70,47 +69,43 @@ class WaitingLine:
         return f"{self.header or 'line'} #{self.i}"
 
 
-class Waiting:
-    """The lines waiting for their answers, first sent first, with the earliest deadline at hand."""
+class Waiting(deque[WaitingLine]):
+    """The lines waiting for their answers, first sent first (a deque), with the earliest deadline at
+    hand (``due``). Lines enter by ``append`` and leave by ``popleft``, ``clear`` or ``keep``, which keep
+    ``due``."""
 
-    __slots__ = ("_lines", "due")
+    __slots__ = ("due",)
 
     def __init__(self) -> None:
-        self._lines: deque[WaitingLine] = deque()
+        super().__init__()
         self.due = _NEVER  # the earliest deadline among the lines (inf: none can close)
-
-    def __bool__(self) -> bool:
-        return bool(self._lines)
-
-    def __len__(self) -> int:
-        return len(self._lines)
-
-    def __iter__(self) -> Iterator[WaitingLine]:
-        return iter(self._lines)
 
     @property
     def head(self) -> WaitingLine | None:
         """The first line waiting, if any."""
-        return self._lines[0] if self._lines else None
+        return self[0] if self else None
 
     def append(self, line: WaitingLine) -> None:
-        self._lines.append(line)
+        super().append(line)
         if line.deadline is not None and line.deadline < self.due:
             self.due = line.deadline
 
     def popleft(self) -> WaitingLine:
-        line = self._lines.popleft()
-        if line.deadline == self.due:
+        line = super().popleft()
+        if not self:
+            self.due = _NEVER
+        elif line.deadline == self.due:
             self._recount()
         return line
 
     def clear(self) -> None:
-        self._lines.clear()
+        super().clear()
         self.due = _NEVER
 
     def keep(self, lines: deque[WaitingLine]) -> None:
         """Only ``lines`` (in order) wait now."""
-        self._lines = lines
+        super().clear()
+        self.extend(lines)
         self._recount()
 
     def reschedule(self, line: WaitingLine, deadline: float) -> None:
@@ -119,7 +114,7 @@ class Waiting:
         self._recount()
 
     def _recount(self) -> None:
-        self.due = min((w.deadline for w in self._lines if w.deadline is not None), default=_NEVER)
+        self.due = min((w.deadline for w in self if w.deadline is not None), default=_NEVER)
 
     # ---- the windows ----
 
@@ -132,12 +127,12 @@ class Waiting:
         answer began then and is still arriving; begun within the head's window, it closes nothing."""
         if not self.due < now:
             return []
-        head = self._lines[0]
+        head = self[0]
         if since is not None and head.deadline is not None and since <= head.deadline:
             return []
         closed: list[WaitingLine] = []
         kept: deque[WaitingLine] = deque()
-        for w in self._lines:
+        for w in self:
             (closed if w.deadline is not None and w.deadline < now else kept).append(w)
         self.keep(kept)
         return closed
