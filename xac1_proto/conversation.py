@@ -45,6 +45,7 @@ after 0CM0, which hands the controller to the external I/O, item 11).
 
 from __future__ import annotations
 
+import functools
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -167,14 +168,12 @@ class Verdict(NamedTuple):
     @property
     def codes(self) -> tuple[spec.ViolationCode, ...]:
         """Violation codes, each once, in the order found."""
-        if not self.violations:
-            return ()
-        return tuple(dict.fromkeys(v.code for v in self.violations))
+        return self._tally()[0]
 
     @property
     def sides(self) -> tuple[spec.Side, ...]:
         """Whose fault each of ``codes`` is (docs/protocol.md "Violation codes"; aligned with ``codes``)."""
-        return tuple(side_of(code, self.sender) for code in self.codes)
+        return self._tally()[1]
 
     @property
     def errors(self) -> tuple[Violation, ...]:
@@ -185,11 +184,29 @@ class Verdict(NamedTuple):
     def severities(self) -> tuple[spec.Severity, ...]:
         """The severity of each of ``codes`` (aligned with it): ``error`` when any of its violations is
         an error, else ``notice`` (``xac1_proto.rules``: the severity follows the rule's basis)."""
-        worst: dict[spec.ViolationCode, spec.Severity] = {}
-        for v in self.violations:
-            if worst.get(v.code) != spec.ERROR:
-                worst[v.code] = v.severity
-        return tuple(worst.values())
+        return self._tally()[2]
+
+    def _tally(self) -> tuple[tuple[spec.ViolationCode, ...], tuple[spec.Side, ...], tuple[spec.Severity, ...]]:
+        if not self.violations:
+            return _NO_TALLY
+        return _tally(tuple((v.code, v.severity) for v in self.violations), self.sender)
+
+
+_NO_TALLY: Final = ((), (), ())
+
+
+@functools.lru_cache(maxsize=1024)
+def _tally(graded: tuple[tuple[spec.ViolationCode, spec.Severity], ...], sender: spec.Side) -> tuple[
+        tuple[spec.ViolationCode, ...], tuple[spec.Side, ...], tuple[spec.Severity, ...]]:
+    """A verdict's codes (each once, in the order found), whose fault each is and its worst severity, from
+    its violations' (code, severity) pairs and the sender: a pure function of few distinct inputs, so
+    remembered (a misbehaving host repeats the same violations every exchange)."""
+    worst: dict[spec.ViolationCode, spec.Severity] = {}
+    for code, severity in graded:
+        if worst.get(code) != spec.ERROR:
+            worst[code] = severity
+    codes = tuple(worst)
+    return codes, tuple(side_of(code, sender) for code in codes), tuple(worst.values())
 
 
 # a verdict from its fields in order: ``_make`` skips the keyword handling of the generated ``__new__``
