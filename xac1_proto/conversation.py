@@ -140,6 +140,8 @@ class Knowledge:
 _NOT_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
 _NOTHING_SKIPPED: Final = ()  # ``_pair``: no line skipped (the usual answer)
 
+# a verdict's codes (each once), whose fault each is, and each one's worst severity
+_Tally = tuple[tuple[spec.ViolationCode, ...], tuple[spec.Side, ...], tuple[spec.Severity, ...]]
 VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer", "cut"]
 
 
@@ -186,7 +188,7 @@ class Verdict(NamedTuple):
         an error, else ``notice`` (``xac1_proto.rules``: the severity follows the rule's basis)."""
         return self._tally()[2]
 
-    def _tally(self) -> tuple[tuple[spec.ViolationCode, ...], tuple[spec.Side, ...], tuple[spec.Severity, ...]]:
+    def _tally(self) -> _Tally:
         if not self.violations:
             return _NO_TALLY
         return _tally(tuple((v.code, v.severity) for v in self.violations), self.sender)
@@ -196,8 +198,7 @@ _NO_TALLY: Final = ((), (), ())
 
 
 @functools.lru_cache(maxsize=1024)
-def _tally(graded: tuple[tuple[spec.ViolationCode, spec.Severity], ...], sender: spec.Side) -> tuple[
-        tuple[spec.ViolationCode, ...], tuple[spec.Side, ...], tuple[spec.Severity, ...]]:
+def _tally(graded: tuple[tuple[spec.ViolationCode, spec.Severity], ...], sender: spec.Side) -> _Tally:
     """A verdict's codes (each once, in the order found), whose fault each is and its worst severity, from
     its violations' (code, severity) pairs and the sender: a pure function of few distinct inputs, so
     remembered (a misbehaving host repeats the same violations every exchange)."""
