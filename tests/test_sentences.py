@@ -22,7 +22,7 @@ def _chunks() -> list[Chunk]:
 
 def test_the_engine_makes_no_sentence_until_one_is_read():
     """Feeding a misbehaving conversation makes no sentence; reading a violation's ``message`` makes
-    exactly its sentence, worded as the rule's (the latch's: docs/protocol.md "Behaviour")."""
+    exactly its sentence, worded as the rule's (docs/protocol.md "Behaviour the vendor text states")."""
     c = Conversation()
     before = sentences.made()
     verdicts = []

@@ -294,6 +294,7 @@ class Conversation:
         self._answer_began: float | None = None  # a device line began at this time and is still arriving
         self._cut: WaitingLine | None = None  # the line whose answer the end of the data cut
         self._cut_since: float | None = None  # when that cut answer began
+        self._late: WaitingLine | None = None  # a move whose guessed window closed: its answer may come late
 
     def _v(self, rule: str, sentence: Callable[..., str], *values: object) -> Violation:
         """A conversation-level violation of ``rule`` (``rules.RULES``) under this conversation's
@@ -444,7 +445,10 @@ class Conversation:
             raw = bytes(raw)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
         found = [*self._graded(violations)]
-        line, skipped = self._pair(header, t_first)
+        if self._late is None:
+            line, skipped = self._pair(header, t_first)
+        else:
+            line, skipped = self._late_or_pair(header, t_first, found)
         if skipped:
             out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
         if line is None:
@@ -510,6 +514,7 @@ class Conversation:
         end = now if now is not None else self._last_t
         since = self._cut_since if self._cut is not None else None
         out = self._expire(end, since) if end is not None else []
+        out += self._late_unanswered(None)
         self._answer_began = None
         keep: deque[WaitingLine] = deque()
         for w in self._queue:
@@ -523,7 +528,7 @@ class Conversation:
     def host_gave_up(self, now: float | None = None) -> list[Verdict]:
         """The host stopped waiting (the client's timeout): every line still owed an answer is
         ``no-answer`` now."""
-        out = []
+        out = self._late_unanswered(now)
         while self._queue:
             w = self._queue.popleft()
             self._end_motion(w)
@@ -563,17 +568,22 @@ class Conversation:
         if self._motion is not None or self._queue:
             kind, overlapped = self._sent_while_waiting(kind, header, t_last, found)
         move = frame if kind == COMMAND and header in spec.MOVE_HEADERS else None
-        line = WaitingLine(i, kind, header, frame, t_last,
-                           self._window_for(move) if window is None else window, overlapped,
-                           move is not None, plain, junk)
+        waited_s, guessed = self._window_for(move, window)
+        line = WaitingLine(i, kind, header, frame, t_last, waited_s, overlapped, move is not None, plain,
+                           junk, guessed)
         self._queue.append(line)
         if move is not None and not overlapped and self.knowledge.latched.value is None:
             self._motion = line
         return line
 
-    def _window_for(self, move: Frame | None) -> float:
-        """The answer window the engine gives a line: a move's (``answer_window``), else the timeout."""
-        return self.no_answer_timeout if move is None else self.answer_window(move)
+    def _window_for(self, move: Frame | None, window: float | None) -> tuple[float, bool]:
+        """A line's answer window, and whether it rests on the guessed speed table: ``window`` when the
+        host says how long it waits (the client), a move's (``answer_window``), else the timeout."""
+        if window is not None:
+            return window, False
+        if move is None:
+            return self.no_answer_timeout, False
+        return self.answer_window(move), self.speeds.guessed
 
     def _sent_while_waiting(self, kind: str, header: str | None, t_last: float | None,
                             found: list[Violation]) -> tuple[str, bool]:
@@ -649,9 +659,34 @@ class Conversation:
         for w in self._queue.closed(now, since):
             self._end_motion(w)
             self._outcome_unknown(w)
-            if w.owed:
+            if w.owed and w.guessed:  # its answer may yet come: judged when it does, or when it cannot
+                out += self._late_unanswered(None)
+                self._late = w
+            elif w.owed:
                 out.append(self._no_answer(w, w.deadline))
         return out
+
+    def _late_unanswered(self, t: float | None) -> list[Verdict]:
+        """The late move (``_late``), if any, got no answer after all: its ``no-answer`` (at ``t``;
+        None: when its window closed)."""
+        late, self._late = self._late, None
+        if late is None:
+            return []
+        return [self._no_answer(late, late.deadline if t is None else t)]
+
+    def _late_or_pair(self, header: str | None, t: float | None,
+                      found: list[Violation]) -> tuple[WaitingLine | None, list[WaitingLine] | tuple[()]]:
+        """``_pair`` while a move whose window rested on the guessed speed table waits late (``_late``):
+        an answer of its header that no waiting line claims is its answer, late (``late-move-answer``, a
+        notice: silent items 15, 17); any other answer shows it got none (``no-answer``)."""
+        late, self._late = self._late, None
+        assert late is not None
+        if header is not None and header == late.header and self._line_of(header, t) is None:
+            found.append(self._v("late-move-answer", sentences.late_move_answer, late.header, late.i,
+                                 _latency(late, t), late.waited_s))
+            return late, _NOTHING_SKIPPED
+        line, skipped = self._pair(header, t)
+        return line, [late, *skipped]
 
     def _no_answer(self, w: WaitingLine, t: float | None, skipped_by: int | None = None) -> Verdict:
         rule = "no-answer-junk" if w.junk else "no-answer-error" if w.kind == ERROR else "no-answer"

@@ -152,3 +152,10 @@ def readback(what: str, seen: object, established: bool, how: str) -> str:
     how_known = "established" if established else "read earlier"
     return _said(f"{what} reads back {seen}, but the conversation {how_known} {how}", BEHAVIOUR,
                  "readback-mismatch")
+
+
+def late_move_answer(header: str | None, i: int, latency_s: float | None, window_s: float) -> str:
+    came = "" if latency_s is None else f" {latency_s:.3f} s after its last byte"
+    return _said(f"the answer to {_name(header, i)} came{came}, later than its {window_s:.3f} s window, "
+                 f"which rests on the guessed speed table (give the device's with --speed-table)",
+                 'docs/protocol.md "Where the vendor text is silent", items 15 and 17', "no-answer")

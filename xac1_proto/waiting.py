@@ -35,14 +35,15 @@ class WaitingLine:
     when its answer window closes (None without time); ``harmless``: a command of ``RAISES_NO_ALARM``
     read with no deviation at all, not even a notice (a device may refuse a lower-case command with an
     alarm of its own: silent item 2), and not discarded;
-    ``junk``: a host junk run ending in LF, no command (owed an alarm answer: our reading)."""
+    ``junk``: a host junk run ending in LF, no command (owed an alarm answer: our reading); ``guessed``: a
+    move whose window rests only on the guessed speed table (silent items 15, 17)."""
 
     __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
-                 "harmless", "junk")
+                 "harmless", "junk", "guessed")
 
     def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  waited_s: float, overlapped: bool = False, is_move: bool = False, plain: bool = False,
-                 junk: bool = False) -> None:
+                 junk: bool = False, guessed: bool = False) -> None:
         self.i = i
         self.kind = kind
         self.header = header
@@ -54,6 +55,7 @@ class WaitingLine:
         self.is_move = is_move
         self.harmless = plain and kind == COMMAND and header in RAISES_NO_ALARM
         self.junk = junk
+        self.guessed = is_move and guessed
 
     @property
     def owed(self) -> bool:
