@@ -425,3 +425,38 @@ def test_a_bad_speed_table_is_refused_naming_what_is_wrong(text, wrong):
     """``--speed-table`` refuses a table it cannot use, saying what was wrong."""
     with pytest.raises(ValueError, match=wrong):
         motion.SpeedTable.parse(text)
+
+
+@pytest.mark.slow
+def test_decode_speed_table_option_makes_the_move_window_firm(tmp_path):
+    """``xac1 decode`` without ``--speed-table``: a move answered later than its guessed window is paired
+    with its move, a ``no-answer`` notice; with the device's table given, the same answer is
+    ``no-answer`` and ``unsolicited-answer`` errors (silent items 15, 17)."""
+    import json
+
+    from conftest import xac1
+
+    from xac1_proto.chunk import Chunk
+    from xac1_proto.recording import RecordingWriter
+
+    c = Conversation()
+    c.host_frame(FIRST_MOVE, 0.0, 0.0) + c.device_frame(FIRST_MOVE, 1.0, 1.0)
+    late = 2.0 + c.answer_window(read_frame(MOVE, spec.COMMAND).frame) + 5.0
+    path = tmp_path / "late.jsonl"
+    with RecordingWriter(path, started=0.0) as w:
+        for t, side, data in [(0.0, "host", FIRST_MOVE), (1.0, "device", FIRST_MOVE), (2.0, "host", MOVE),
+                              (late, "device", MOVE)]:
+            w.write(Chunk(1000.0 + t, side, data))
+
+    def judged(*options: str) -> list[tuple[str, str]]:
+        out = xac1("decode", str(path), "--format", "jsonl", *options)
+        assert out.returncode in (0, 1), out.stderr
+        records = [json.loads(line) for line in out.stdout.splitlines()[:-1]]
+        return [(code, sev) for r in records for code, sev in zip(r["violations"], r["severities"],
+                                                                  strict=True)]
+
+    assert judged() == [("no-answer", "notice")]
+    assert judged("--speed-table", "1000:500:10000") == [("no-answer", "error"),
+                                                         ("unsolicited-answer", "error")]
+    bad = xac1("decode", str(path), "--speed-table", "fast")
+    assert bad.returncode == 2 and "--speed-table" in bad.stderr
