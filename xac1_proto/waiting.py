@@ -39,7 +39,7 @@ class WaitingLine:
     move whose window rests only on the guessed speed table (silent items 15, 17)."""
 
     __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
-                 "harmless", "junk", "guessed")
+                 "harmless", "junk", "guessed", "owed", "is_reset")
 
     def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  waited_s: float, overlapped: bool = False, is_move: bool = False, plain: bool = False,
@@ -56,16 +56,8 @@ class WaitingLine:
         self.harmless = plain and kind == COMMAND and header in RAISES_NO_ALARM
         self.junk = junk
         self.guessed = is_move and guessed
-
-    @property
-    def owed(self) -> bool:
-        """Does silence to it break a rule (no-answer)?"""
-        return self.kind != DISCARD and not self.overlapped
-
-    @property
-    def is_reset(self) -> bool:
-        """Is it a well-formed alarm reset (0%C)?"""
-        return self.kind == COMMAND and self.header == spec.RESET_HEADER
+        self.owed = kind != DISCARD and not overlapped  # does silence to it break a rule (no-answer)?
+        self.is_reset = kind == COMMAND and header == spec.RESET_HEADER  # a well-formed alarm reset (0%C)?
 
     def name(self) -> str:
         return f"{self.header or 'line'} #{self.i}"
