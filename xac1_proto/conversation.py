@@ -46,6 +46,7 @@ after 0CM0, which hands the controller to the external I/O, item 11).
 from __future__ import annotations
 
 import functools
+import operator
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -191,10 +192,12 @@ class Verdict(NamedTuple):
     def _tally(self) -> _Tally:
         if not self.violations:
             return _NO_TALLY
-        return _tally(tuple((v.code, v.severity) for v in self.violations), self.sender)
+        return _tally(tuple(map(_CODE_AND_SEVERITY, self.violations)), self.sender)
 
 
 _NO_TALLY: Final = ((), (), ())
+_CODE_AND_SEVERITY: Final = operator.attrgetter("code", "severity")  # a violation's (code, severity)
+_SEVERITY: Final = operator.attrgetter("severity")
 
 
 @functools.lru_cache(maxsize=1024)
@@ -210,9 +213,9 @@ def _tally(graded: tuple[tuple[spec.ViolationCode, spec.Severity], ...], sender:
     return codes, tuple(side_of(code, sender) for code in codes), tuple(worst.values())
 
 
-# a verdict from its fields in order: ``_make`` skips the keyword handling of the generated ``__new__``
-# (two verdicts an exchange)
-_verdict: Final = Verdict._make
+# a verdict from its fields in order, as ``Verdict._make`` builds it but with no Python frame of its own
+# (two verdicts an exchange; every field is given)
+_verdict: Final = functools.partial(tuple.__new__, Verdict)
 
 
 # the answers that echo their command: the same fields as the command's, so a frame's values in wire order
@@ -259,7 +262,8 @@ def _latency(line: WaitingLine | None, t: float | None) -> float | None:
 
 
 def _is_error(violations: list[Violation]) -> bool:
-    return any(v.is_error for v in violations)
+    """Does any of ``violations`` break a rule (not a notice)?"""
+    return spec.ERROR in map(_SEVERITY, violations)
 
 
 class Conversation:
