@@ -83,26 +83,26 @@ def violations_table() -> str:
     return "\n".join(rows)
 
 
+def _latch_cell(cell: latch.Transition) -> str:
+    """A cell of the latch table: the rule broken (``-``: none) and, after an arrow, the effect when the
+    event does something."""
+    rule = f"`{cell.rule}`" if cell.rule else "-"
+    return rule if cell.effect is latch.Effect.KEEP else f"{rule} → {cell.effect.name}"
+
+
 def latch_table() -> str:
     """The alarm latch's state machine (``latch.LATCH``): one row an event, one column a state, each cell
-    the rule the event breaks there (``-``: none) and, after an arrow, what it does when it does
-    something."""
+    ``_latch_cell``; then what the states and effects are, and the storm run's table."""
     states = list(latch.LatchState)
     rows = ["| event | " + " | ".join(s.name for s in states) + " |", "|---|" + "---|" * len(states)]
     for event in latch.LatchEvent:
-        cells = []
-        for state in states:
-            cell = latch.LATCH[(state, event)]
-            rule = f"`{cell.rule}`" if cell.rule else "-"
-            cells.append(rule if cell.effect is latch.Effect.KEEP else f"{rule} → {cell.effect.name}")
+        cells = [_latch_cell(latch.LATCH[(state, event)]) for state in states]
         rows.append(f"| {event.name}: {event.value} | " + " | ".join(cells) + " |")
-    rows.append("")
-    rows.append("States: " + "; ".join(f"{s.name}: {s.value}" for s in states) + ". Effects: "
-                + "; ".join(f"{e.name}: {e.value}" for e in latch.Effect if e is not latch.Effect.KEEP) + ".")
-    rows.append("")
-    rows.append("The storm run (`HOST_DUTY`): " + "; ".join(
-        f"{state.name} ({state.value}), {'the reset' if reset else 'another line'}: "
-        f"{f'`{rule}`' if rule else 'nothing'}" for (state, reset), rule in latch.HOST_DUTY.items()) + ".")
+    effects = [f"{e.name}: {e.value}" for e in latch.Effect if e is not latch.Effect.KEEP]
+    storm = [f"{state.name} ({state.value}), {'the reset' if reset else 'another line'}: "
+             f"{f'`{rule}`' if rule else 'nothing'}" for (state, reset), rule in latch.HOST_DUTY.items()]
+    rows += ["", "States: " + "; ".join(f"{s.name}: {s.value}" for s in states) + ". Effects: "
+             + "; ".join(effects) + ".", "", "The storm run (`HOST_DUTY`): " + "; ".join(storm) + "."]
     return "\n".join(rows)
 
 
