@@ -28,6 +28,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Final
 
 from xac1_proto import rules, spec
+from xac1_proto.speed_option import add_speed_table_option, speeds_of
 
 from .capture_args import WRONG_FORMAT_LIMIT, add_capture_arguments, choose_format, open_sources
 
@@ -101,6 +102,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"(default {spec.STORM_LIMIT})")
     p.add_argument("--readings", choices=rules.READINGS, default=rules.DEFAULT_READINGS,
                    help=rules.READINGS_HELP)
+    add_speed_table_option(p)
     p.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                    help="colour in the text view (default: when the output is a terminal)")
     p.add_argument("--report", metavar="FILE", default=None,
@@ -222,11 +224,11 @@ def _decode(capture: Capture, args: argparse.Namespace, one_sided: bool = False,
 
 
 def _analyzer(args: argparse.Namespace, directions: Directions) -> Any:
-    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``, ``--readings``) and the
-    lines the capture holds."""
+    """The analyzer with the rule options given (``--timeout``, ``--storm-limit``, ``--readings``,
+    ``--speed-table``) and the lines the capture holds."""
     from .analyzer import Analyzer
 
-    options: dict[str, Any] = {"readings": args.readings, "directions": directions}
+    options: dict[str, Any] = {"readings": args.readings, "speeds": speeds_of(args), "directions": directions}
     if args.no_answer_timeout is not None:
         options["no_answer_timeout"] = args.no_answer_timeout
     if args.storm_limit is not None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from xac1_proto import rules, spec
+from xac1_proto.speed_option import add_speed_table_option, speeds_of
 
 HELP = "watch live traffic through two receive-only taps (host TX, device TX) and decode it"
 
@@ -24,6 +25,7 @@ def add_common_output(parser: argparse.ArgumentParser) -> None:
                              f"comm-error-storm (default {spec.STORM_LIMIT})")
     parser.add_argument("--readings", choices=rules.READINGS, default=rules.DEFAULT_READINGS,
                         help=rules.READINGS_HELP)
+    add_speed_table_option(parser)
     parser.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                         help="colour in the text view (default: when the output is a terminal)")
     parser.add_argument("--report", metavar="FILE",
@@ -77,7 +79,7 @@ def make_session(args: argparse.Namespace, source: str,
         recorder = open_recording(args.record, f"{source} ({settings})",
                                   fmt=getattr(args, "record_format", None))  # extcap: a FIFO
     analyzer = Analyzer(no_answer_timeout=args.timeout, storm_limit=args.storm_limit,
-                        readings=args.readings)
+                        readings=args.readings, speeds=speeds_of(args))
     if report is not None:
         from .report.live import ReportingSession
         return ReportingSession(analyzer, make_view(args.format, sys.stdout, args.color), recorder, report,

@@ -279,12 +279,33 @@ def test_arbitrary_conversations_never_raise_and_chunking_never_changes_verdicts
         assert len(codes) == len(sides) and set(sides) <= {"host", "device"}
 
 
-def test_every_command_that_changes_knowledge_has_its_handler():
-    """What a clean exchange establishes is declared in one table, a handler a header (``_LEARNERS``):
-    every command header of the frame table has one, but 0%C, which changes only the mode and the latch
-    (docs/protocol.md "Behaviour the vendor text states"; silent item 11)."""
-    from xac1_proto import conversation as conv
+def test_every_command_header_has_its_row_of_what_it_teaches_and_forgets():
+    """What a clean exchange establishes and what a failed one forgets are the two columns of one table,
+    a row a command header (``HEADER_RULES``): every command header of the frame table has its row, each
+    with a forget; every one but 0%C (which changes only the mode and the latch, ``latch.LATCH``) learns
+    (docs/protocol.md "Behaviour the vendor text states"; silent items 11, 18)."""
+    from xac1_proto.conversation import HEADER_RULES
 
     commands = {fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND}
-    assert set(conv._LEARNERS) == commands - {spec.RESET_HEADER}
-    assert all(callable(handler) for handler in conv._LEARNERS.values())
+    assert set(HEADER_RULES) == commands
+    assert all(callable(row.forget) for row in HEADER_RULES.values())
+    assert {h for h, row in HEADER_RULES.items() if row.learn is None} == {spec.RESET_HEADER}
+
+
+@pytest.mark.parametrize("command", [b"0WP19302012345\r\n", b"0WS12\r\n", b"0MV3C3001000\r\n",
+                                     b"0CM1\r\n"])
+def test_a_missing_answer_forgets_what_the_command_would_have_changed(command):
+    """A line whose answer never came: what it would have changed is unknown (its row's forget column),
+    never judged afterwards (docs/protocol.md "Behaviour the vendor text states": a missing answer)."""
+    from xac1_proto.conversation import HEADER_RULES
+
+    header = command[:3].decode()
+    setup = [(b"0WP19302012345\r\n", b"0WP19302012345\r\n"), (b"0WS12\r\n", b"0WS12\r\n"),
+             (b"0MV3C3001000\r\n", b"0MV3C3001000\r\n"), (b"0CM1\r\n", b"0CM1\r\n")]
+    verdicts, c = play(seq(*setup, (command, None)) + [(5.0, DJ, b"\x00")])  # time passes: its window closes
+    assert ("no-answer", "device") in found(verdicts)
+    k = c.knowledge
+    after = {"0WP": k.point(1).status, "0WS": k.outputs.status, "0MV": k.position.status,
+             "0CM": k.mode.status}
+    assert after[header] == UNKNOWN, HEADER_RULES[header].forget.__doc__
+    assert [s for h, s in after.items() if h != header] != [UNKNOWN] * 3

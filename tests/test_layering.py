@@ -25,7 +25,7 @@ PACKAGE = ROOT / "xac1_proto"
 # The sans-IO core (docs/architecture.md "Layers"); the rulebook engine joins it once it exists.
 CORE = ["spec", "grammar", "frames", "codec", "framer", "motion", "chunk", "errors", "exchange", "replay"]
 if (PACKAGE / "conversation.py").exists():
-    CORE.append("conversation")
+    CORE += ["conversation", "latch", "waiting", "sentences"]
 
 # Modules the core must not load: I/O, threads, and everything above the core.
 FORBIDDEN_ROOTS = {"serial", "socket", "threading", "select", "selectors", "subprocess", "asyncio",

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_conversation_unseen import talk  # command and answer pairs 0.1 s apart
 
-from xac1_proto import docgen, rules, spec
+from xac1_proto import docgen, motion, rules, spec
 from xac1_proto.codec import read_frame
 from xac1_proto.conversation import LEARNT, UNKNOWN, Conversation, Verdict
 
@@ -291,3 +291,172 @@ def test_every_rule_row_is_applied():
         encoding="utf-8")
     for r in rules.RULE_ROWS:
         assert r.name == r.code or f'"{r.name}"' in source, r.name
+
+
+# ---- the latch's state machine (issue 35, item 2) ----
+
+def test_the_latch_table_and_the_doc_rule_table_say_the_same():
+    """Every rule a cell of the latch's state machine (``latch.LATCH``, ``latch.HOST_DUTY``) names is a row
+    of the rulebook and of docs/protocol.md's violation table; every rule of the latch's codes
+    (latch-broken, estop-cleared, the storm's) is named by a cell; and the page's latch table is the
+    declared one, cell for cell."""
+    from xac1_proto import latch
+
+    page = docgen.DEFAULT_PATH.read_text(encoding="utf-8")
+    violations = page.split("<!-- generated: violations -->")[1].split(docgen.END)[0]
+    doc_rules = {cells[1].strip(): cells[0].strip(" `") for cells in
+                 (line.strip("|").split("|") for line in violations.splitlines() if line.startswith("| `"))}
+    named = latch.rules_named()
+    assert named <= set(doc_rules) and named <= set(rules.RULES)
+    latch_codes = {"latch-broken", "estop-cleared", "comm-error-storm", "storm-recovery"}
+    assert {r.name for r in rules.RULE_ROWS if r.code in latch_codes} == named
+    block = page.split("<!-- generated: latch -->")[1].split(docgen.END)[0]
+    rows = [line for line in block.splitlines() if line.startswith("| ") and not line.startswith("| event")]
+    assert len(rows) == len(latch.LatchEvent)
+    for line, event in zip(rows, latch.LatchEvent, strict=True):
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        for cell, state in zip(cells[1:], latch.LatchState, strict=True):
+            rule = latch.LATCH[(state, event)].rule
+            assert cell.split(" → ")[0] == (f"`{rule}`" if rule else "-")
+
+
+@pytest.mark.parametrize(("script", "state"), [
+    ((), "FREE"),
+    (((b"0RV\r\n", b"0%%08\r\n"),), "HELD"),
+    (((b"0RV\r\n", b"0%%0E\r\n"),), "STOP_UNSEEN"),
+    (((b"0RV\r\n", b"0%%08\r\n"), (b"0RV\r\n", b"0%%0E\r\n")), "STOP_UNSEEN_OVER"),
+])
+def test_the_latch_state_is_read_from_what_the_line_showed(script, state):
+    """``Conversation.latch_state``: nothing latched, an alarm latched, 0E with the stop input unseen (it
+    may have been released), and 0E over an alarm held under it until a reset (vendor §6; silent item 3)."""
+    _, c = talk(*script)
+    assert c.latch_state().name == state
+
+
+def test_the_stop_input_known_pressed_is_the_stop_state():
+    """A caller that drives the stop input: pressed, 0E latches with the input known pressed (STOP); a
+    reset then answered 0%C00 is ``estop-cleared`` in every state (vendor §6: the reset clears every
+    alarm but emergency stop)."""
+    c = Conversation()
+    c.stop_input(True)
+    assert c.latch_state().name == "STOP"
+    out = c.host_frame(b"0%C\r\n", 0.0, 0.0) + c.device_frame(b"0%C00\r\n", 0.01, 0.01)
+    assert codes(out) == ["estop-cleared"] and c.knowledge.latched.value == spec.ALARM_ESTOP
+
+
+# ---- 5. move answer windows from a guessed speed table ----
+
+FIRST_MOVE, MOVE = b"0MV3C3001000\r\n", b"0MV3C3002000\r\n"
+
+
+def _late_move(c: Conversation, late_by: float, then: tuple[bytes, bytes] | None = None) -> list[Verdict]:
+    """A move to a known start, then a second move whose answer comes ``late_by`` s after its window
+    (the window the engine gives it, from its speed table); ``then``: another exchange after that."""
+    out = c.host_frame(FIRST_MOVE, 0.0, 0.0) + c.device_frame(FIRST_MOVE, 1.0, 1.0)
+    window = c.answer_window(read_frame(MOVE, spec.COMMAND).frame)
+    out += c.host_frame(MOVE, 2.0, 2.0)
+    answer_at = 2.0 + window + late_by
+    if then is not None:
+        out += c.host_frame(then[0], answer_at - 0.01, answer_at - 0.01)
+    out += c.tick(answer_at - 0.001) + c.device_frame(MOVE, answer_at, answer_at)
+    if then is not None:
+        out += c.device_frame(then[1], answer_at + 0.01, answer_at + 0.01)
+    return out + c.close()
+
+
+def test_verdict_late_move_answer_is_a_notice():
+    """A move's answer later than its window, which rests only on the guessed speed table (silent items
+    15, 17), is paired with its move and is a ``no-answer`` notice (rule ``late-move-answer``), never a
+    ``no-answer`` and ``unsolicited-answer`` pair of errors."""
+    verdicts = _late_move(Conversation(), late_by=5.0)
+    answer = [v for v in verdicts if v.kind == "device-frame"][-1]
+    assert codes(verdicts) == ["no-answer"] and errors(verdicts) == []
+    assert answer.reply_to == 2 and answer.violations[0].rule == "late-move-answer"
+    assert answer.severities == ("notice",)
+
+
+def test_a_move_answer_in_its_guessed_window_is_clean():
+    """Within the window estimated from the guessed table, a move's answer is in time."""
+    assert codes(_late_move(Conversation(), late_by=-0.5)) == []
+
+
+def test_a_late_move_answer_under_readings_error_is_an_error():
+    """``--readings error`` adopts the guessed window: the late answer is an error (still paired)."""
+    verdicts = _late_move(Conversation(readings="error"), late_by=5.0)
+    assert errors(verdicts) == ["no-answer"]
+    assert [v.reply_to for v in verdicts if v.kind == "device-frame"] == [0, 2]
+
+
+def test_a_late_move_whose_answer_never_comes_is_no_answer():
+    """A late move the device never answers is ``no-answer`` (an error, vendor §2) when the data ends or
+    the device answers a later line instead."""
+    c = Conversation()
+    c.host_frame(FIRST_MOVE, 0.0, 0.0) + c.device_frame(FIRST_MOVE, 1.0, 1.0)
+    out = c.host_frame(MOVE, 2.0, 2.0) + c.close(100.0)
+    assert errors(out) == ["no-answer"]
+    c = Conversation()
+    c.host_frame(FIRST_MOVE, 0.0, 0.0) + c.device_frame(FIRST_MOVE, 1.0, 1.0)
+    after = 2.0 + c.answer_window(read_frame(MOVE, spec.COMMAND).frame) + 1.0
+    out = c.host_frame(MOVE, 2.0, 2.0) + c.host_frame(b"0RV\r\n", after, after)
+    out += c.device_frame(b"0RV100\r\n", after + 0.01, after + 0.01) + c.close()
+    assert errors(out) == ["no-answer"] and [v.reply_to for v in out if v.kind == "no-answer"] == [2]
+
+
+def test_a_late_move_answer_after_another_exchange_is_still_its_answer():
+    """The host went on after the guessed window closed; the move's late answer, before the next
+    command's, is still the move's (a notice), the next command's answer its own."""
+    verdicts = _late_move(Conversation(), late_by=5.0, then=(b"0RV\r\n", b"0RV100\r\n"))
+    assert codes(verdicts) == ["no-answer"] and errors(verdicts) == []
+    assert [v.reply_to for v in verdicts if v.kind == "device-frame"] == [0, 2, 3]
+
+
+def test_a_speed_table_the_user_gives_makes_the_window_firm():
+    """With the device's speed table given (``--speed-table``), a move's window no longer rests on a
+    guess: an answer later than it is ``no-answer`` and the answer is ``unsolicited-answer``, errors as
+    for any command (docs/protocol.md silent item 17)."""
+    speeds = motion.SpeedTable.parse("1000:500:10000")
+    verdicts = _late_move(Conversation(speeds=speeds), late_by=5.0)
+    assert errors(verdicts) == ["no-answer", "unsolicited-answer"]
+
+
+@pytest.mark.parametrize(("text", "wrong"), [("1000:500", "V:VEL:HOMING"), ("a:b:c", "numbers"),
+                                             ("1000:0:10000", "positive"), ("1:1:1:7", "acceleration")])
+def test_a_bad_speed_table_is_refused_naming_what_is_wrong(text, wrong):
+    """``--speed-table`` refuses a table it cannot use, saying what was wrong."""
+    with pytest.raises(ValueError, match=wrong):
+        motion.SpeedTable.parse(text)
+
+
+@pytest.mark.slow
+def test_decode_speed_table_option_makes_the_move_window_firm(tmp_path):
+    """``xac1 decode`` without ``--speed-table``: a move answered later than its guessed window is paired
+    with its move, a ``no-answer`` notice; with the device's table given, the same answer is
+    ``no-answer`` and ``unsolicited-answer`` errors (silent items 15, 17)."""
+    import json
+
+    from conftest import xac1
+
+    from xac1_proto.chunk import Chunk
+    from xac1_proto.recording import RecordingWriter
+
+    c = Conversation()
+    c.host_frame(FIRST_MOVE, 0.0, 0.0) + c.device_frame(FIRST_MOVE, 1.0, 1.0)
+    late = 2.0 + c.answer_window(read_frame(MOVE, spec.COMMAND).frame) + 5.0
+    path = tmp_path / "late.jsonl"
+    with RecordingWriter(path, started=0.0) as w:
+        for t, side, data in [(0.0, "host", FIRST_MOVE), (1.0, "device", FIRST_MOVE), (2.0, "host", MOVE),
+                              (late, "device", MOVE)]:
+            w.write(Chunk(1000.0 + t, side, data))
+
+    def judged(*options: str) -> list[tuple[str, str]]:
+        out = xac1("decode", str(path), "--format", "jsonl", *options)
+        assert out.returncode in (0, 1), out.stderr
+        records = [json.loads(line) for line in out.stdout.splitlines()[:-1]]
+        return [(code, sev) for r in records for code, sev in zip(r["violations"], r["severities"],
+                                                                  strict=True)]
+
+    assert judged() == [("no-answer", "notice")]
+    assert judged("--speed-table", "1000:500:10000") == [("no-answer", "error"),
+                                                         ("unsolicited-answer", "error")]
+    bad = xac1("decode", str(path), "--speed-table", "fast")
+    assert bad.returncode == 2 and "--speed-table" in bad.stderr

@@ -29,44 +29,20 @@ times, order cannot tell it from the first line left unanswered: the verdict say
 line itself is not owed an answer. A line sent during a move is ``command-during-motion`` and is
 discarded by the device (silent item 10).
 
-The rules, each written once below (whose fault: ``spec.VIOLATION_TABLE[code].side(sender)``). Each
-violation names its row of the rulebook (``rules.RULE_ROWS``: code, basis and so severity; a rule that is
-our reading is a notice unless ``readings="error"``); docs/protocol.md "Violation codes" is generated
-from those rows. Where each code is found:
-
-| code | on | rule (docs/protocol.md) |
-|---|---|---|
-| framing codes | the frame | ``codec.diagnose``: the frame table ("Framing", "Fields", "Frames") |
-| ``overlapping-command`` | host line | sent while an earlier line is owed its answer ("Framing") |
-| ``command-during-motion`` | host line | sent while a move's answer is awaited ("Behaviour") |
-| ``alarm-ignored`` | host line | not a well-formed 0%C after an alarm answer ("Behaviour": latch; a notice:
-  our reading, the vendor states no duty) |
-| ``comm-error-storm`` | host line | the storm run reached the limit (host duty): the run counts ``0%%01``
-  answers, the reset answer neither counts nor ends it, any other answer ends it; a garbled answer (junk,
-  or a frame whose fields cannot be read) neither counts nor ends it |
-| ``storm-recovery`` | host line | a well-formed 0%C, or the first line after its 0%C00, at the storm limit
-  (a notice: our reading) |
-| ``no-answer`` | its own verdict | a line's window closed, or a later line was answered ("Behaviour") |
-| ``error-accepted`` | answer | a normal answer to an error ("Behaviour": errors get ``0%%Ec``) |
-| ``answer-mismatch`` | answer | another command's answer, or another N ("Frames") |
-| ``echo-mismatch`` | answer | an echo with other field values; case alone is the notice ("Behaviour") |
-| ``latch-broken`` | answer | a normal answer while an alarm is latched; a latched code changing to
-  another than 0E (after 0E: only where the stop input is known pressed); a reset (0%C) answered with an
-  alarm other than 0E: the reset did not work; an alarm a reset cleared during an emergency stop coming
-  back, or one held under the stop forgotten, after the release ("Behaviour": latch and reset; silent
-  item 3; our choice of code for the failed reset) |
-| ``estop-cleared`` | answer | 0%C00 while the stop input is *known* pressed (silent item 3) |
-| ``readback-mismatch`` | answer | a point (0WP, 0WC, an earlier 0RP), the OUT ports (0WS, an earlier
-  0RS), the position (0MV, 0MP N to a known point, an earlier 0RC), the version read back otherwise; 0RC
-  answering a position while the axis is known not homed ("Behaviour": 0RC before homing); 0RC answering
-  Pos FFFFFF is the device stating it is not homed: learnt, never judged |
-| ``unsolicited-answer`` | answer | nothing waits for it ("Violation codes") |
-| ``garbage`` | junk | bytes that form no frame ("Framing") |
+The rules are data. Each violation names its row of the rulebook (``rules.RULE_ROWS``: code, whose
+duty, basis and so severity; a rule that is our reading is a notice unless ``readings="error"``), from
+which docs/protocol.md "Violation codes" is generated. The alarm latch, the emergency stop, the reset and
+the storm run are the declared state machines of ``latch`` (``LATCH``, ``HOST_DUTY``: which rule each
+event breaks in each state, and what it does); whether a window has closed is decided in one place,
+``waiting.Waiting.closed``; what each command teaches and forgets is one row a header (``HEADER_RULES``).
+A violation is recorded as its rule and the few values its sentence needs; the sentence
+(``sentences``) is made only when shown. The framing codes come from the decoder (``codec``).
 
 Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a command; what each
-command reads and writes of it is one handler a header, declared in the table ``_LEARNERS``): a command
+command reads and writes of it is the ``learn`` column of its row of ``HEADER_RULES``): a command
 refused with an alarm takes no effect (silent item 18); a garbled, missing or faulty answer makes what
-the command would have changed unknown. What docs/protocol.md leaves open is never judged: it becomes
+the command would have changed unknown (the row's ``forget`` column). What docs/protocol.md leaves
+open is never judged: it becomes
 ``unknown`` and is learnt from the next answer (the alarm code of an error, item 1; the OUT ports after
 0MP N and 0RC's O, item 8; the position after homing, item 7; 0WC's V, A, O, item 4; what the axis does
 after the stop input is released, item 3, unless the caller says; the OUT ports, the position and homing
@@ -75,15 +51,18 @@ after 0CM0, which hands the controller to the external I/O, item 11).
 
 from __future__ import annotations
 
+import functools
+import operator
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final, Generic, Literal, NamedTuple, TypeVar
 
-from . import motion, rules, spec
-from .codec import header_of, read_frame, show_bytes
+from . import motion, rules, sentences, spec
+from .codec import Reading, header_of, read_frame
 from .errors import Violation
 from .frames import (
+    AlarmReset,
     Frame,
     MoveDirect,
     MovePoint,
@@ -100,6 +79,8 @@ from .frames import (
     WriteOutputs,
     WritePoint,
 )
+from .latch import ALARM_EVENTS, HOST_DUTY, LATCH, Effect, LatchEvent, LatchState, StormState
+from .waiting import COMMAND, DISCARD, ERROR, Waiting, WaitingLine
 
 T = TypeVar("T")
 Status = Literal["unknown", "known", "learnt"]
@@ -115,10 +96,6 @@ BOTH: Final = "both"  # the usual capture: both lines' bytes
 DIRECTIONS: Final[tuple[Directions, ...]] = (BOTH, HOST, DEVICE)
 STROKE_END: Final = spec.UNKNOWN_POSITION - 1  # the farthest position a move can reach (silent item 5)
 
-_BEHAVIOUR: Final = 'docs/protocol.md "Behaviour the vendor text states"'
-_SILENT: Final = 'docs/protocol.md "Where the vendor text is silent"'
-_CODES: Final = 'docs/protocol.md "Violation codes"'
-_FRAMES: Final = 'docs/protocol.md "Frames"'
 
 
 class Fact(NamedTuple, Generic[T]):
@@ -173,6 +150,8 @@ class Knowledge:
 _NOT_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
 _NOTHING_SKIPPED: Final = ()  # ``_pair``: no line skipped (the usual answer)
 
+# a verdict's codes (each once), whose fault each is, and each one's worst severity
+_Tally = tuple[tuple[spec.ViolationCode, ...], tuple[spec.Side, ...], tuple[spec.Severity, ...]]
 VerdictKind = Literal["host-frame", "device-frame", "host-junk", "device-junk", "no-answer", "cut"]
 
 
@@ -201,14 +180,12 @@ class Verdict(NamedTuple):
     @property
     def codes(self) -> tuple[spec.ViolationCode, ...]:
         """Violation codes, each once, in the order found."""
-        if not self.violations:
-            return ()
-        return tuple(dict.fromkeys(v.code for v in self.violations))
+        return self._tally()[0]
 
     @property
     def sides(self) -> tuple[spec.Side, ...]:
         """Whose fault each of ``codes`` is (docs/protocol.md "Violation codes"; aligned with ``codes``)."""
-        return tuple(side_of(code, self.sender) for code in self.codes)
+        return self._tally()[1]
 
     @property
     def errors(self) -> tuple[Violation, ...]:
@@ -219,16 +196,35 @@ class Verdict(NamedTuple):
     def severities(self) -> tuple[spec.Severity, ...]:
         """The severity of each of ``codes`` (aligned with it): ``error`` when any of its violations is
         an error, else ``notice`` (``xac1_proto.rules``: the severity follows the rule's basis)."""
-        worst: dict[spec.ViolationCode, spec.Severity] = {}
-        for v in self.violations:
-            if worst.get(v.code) != spec.ERROR:
-                worst[v.code] = v.severity
-        return tuple(worst.values())
+        return self._tally()[2]
+
+    def _tally(self) -> _Tally:
+        if not self.violations:
+            return _NO_TALLY
+        return _tally(tuple(map(_CODE_AND_SEVERITY, self.violations)), self.sender)
 
 
-# a verdict from its fields in order: ``_make`` skips the keyword handling of the generated ``__new__``
-# (two verdicts an exchange)
-_verdict: Final = Verdict._make
+_NO_TALLY: Final = ((), (), ())
+_CODE_AND_SEVERITY: Final = operator.attrgetter("code", "severity")  # a violation's (code, severity)
+_SEVERITY: Final = operator.attrgetter("severity")
+
+
+@functools.lru_cache(maxsize=1024)
+def _tally(graded: tuple[tuple[spec.ViolationCode, spec.Severity], ...], sender: spec.Side) -> _Tally:
+    """A verdict's codes (each once, in the order found), whose fault each is and its worst severity, from
+    its violations' (code, severity) pairs and the sender: a pure function of few distinct inputs, so
+    remembered (a misbehaving host repeats the same violations every exchange)."""
+    worst: dict[spec.ViolationCode, spec.Severity] = {}
+    for code, severity in graded:
+        if worst.get(code) != spec.ERROR:
+            worst[code] = severity
+    codes = tuple(worst)
+    return codes, tuple(side_of(code, sender) for code in codes), tuple(worst.values())
+
+
+# a verdict from its fields in order, as ``Verdict._make`` builds it but with no Python frame of its own
+# (two verdicts an exchange; every field is given)
+_verdict: Final = functools.partial(tuple.__new__, Verdict)
 
 
 # the answers that echo their command: the same fields as the command's, so a frame's values in wire order
@@ -249,61 +245,34 @@ def side_of(code: spec.ViolationCode, sender: spec.Side) -> spec.Side:
 
 
 
-# well-formed commands that raise no alarm of their own (our reading of vendor §6 and §7): an alarm
-# answer to one sent without any deviation is a latched alarm, never a new one (one with a notice may be
-# refused: a device may take lower case for an error, silent item 2)
-_RAISES_NO_ALARM: Final = frozenset({"0RV", "0RS", "0RC", "0WS", "0CM"})
+# answers that neither count nor end the storm run: the alarm answer counts itself, the reset answer
+# neither counts nor ends it, an unreadable line does neither
+_KEEPS_STORM_RUN: Final = frozenset({None, _ALARM, _RESET})
 
-# kinds of host lines in the queue
-_COMMAND: Final = "command"  # a well-formed command: owed its answer
-_ERROR: Final = "error"  # a frame breaking the frame table, or a junk line: owed an alarm answer
-_DISCARD: Final = "discard"  # sent during a move: discarded by the device (silent item 10)
+# an alarm answer to the reset, by its code: the latch event (any other code: the reset refused)
+_RESET_ALARM_EVENTS: Final = {spec.ALARM_ESTOP: LatchEvent.RESET_ESTOP,
+                              spec.ALARM_NONE: LatchEvent.RESET_NOTHING}
+# an alarm answer to another line, by its code, where the code alone decides
+_CODE_EVENTS: Final = {spec.ALARM_ESTOP: LatchEvent.ESTOP, spec.ALARM_NONE: LatchEvent.NOTHING}
 
-
-class _Line:
-    """A host line waiting for its answer. ``overlapped``: sent while another line waited (the host's
-    fault, not owed an answer); ``deadline``: when its answer window closes (None without time);
-    ``plain``: read with no deviation at all, not even a notice (a device may refuse a lower-case
-    command with an alarm of its own: silent item 2)."""
-
-    __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
-                 "plain", "junk")
-
-    def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
-                 deadline: float | None, waited_s: float, overlapped: bool = False,
-                 is_move: bool = False, plain: bool = False) -> None:
-        self.i = i
-        self.kind = kind
-        self.header = header
-        self.frame = frame
-        self.t_last = t_last
-        self.deadline = deadline
-        self.waited_s = waited_s
-        self.overlapped = overlapped
-        self.is_move = is_move
-        self.plain = plain
-        self.junk = False  # a host junk run ending in LF: no command (owed an alarm answer: our reading)
-
-    @property
-    def owed(self) -> bool:
-        """Does silence to it break a rule (no-answer)?"""
-        return self.kind != _DISCARD and not self.overlapped
-
-    @property
-    def is_reset(self) -> bool:
-        """Is it a well-formed alarm reset (0%C)?"""
-        return self.kind == _COMMAND and self.header == spec.RESET_HEADER
-
-    def name(self) -> str:
-        return f"{self.header or 'line'} #{self.i}"
+# what an alarm code itself makes unknown: after 0E nothing is stated of the position or the OUT ports;
+# after a homing error, homed or not is learnt from 0RC ("Alarms")
+_ALARM_FORGETS: Final[dict[int, tuple[str, ...]]] = {
+    spec.ALARM_ESTOP: ("position", "outputs"),
+    spec.ALARM_HOMING: ("homed", "position"),
+}
 
 
-def _show(name: str, value: object) -> str:
-    return spec.FIELDS[name].show(value) if isinstance(value, int) else str(value)
+def _latency(line: WaitingLine | None, t: float | None) -> float | None:
+    """From ``line``'s last byte to ``t`` (an answer's first byte), when both are known."""
+    if line is None or line.t_last is None or t is None:
+        return None
+    return t - line.t_last
 
 
 def _is_error(violations: list[Violation]) -> bool:
-    return any(v.is_error for v in violations)
+    """Does any of ``violations`` break a rule (not a notice)?"""
+    return spec.ERROR in map(_SEVERITY, violations)
 
 
 class Conversation:
@@ -336,21 +305,27 @@ class Conversation:
         self.storm_limit = storm_limit
         self.speeds = speeds
         self.knowledge = Knowledge()
-        self._queue: deque[_Line] = deque()
-        self._motion: _Line | None = None
+        self._queue = Waiting()
+        self._motion: WaitingLine | None = None
         self._unreset_alarm = False  # an alarm answer came and no well-formed 0%C since
         self._reset_in_storm = False  # the last answer was 0%C00 to a reset sent at the storm limit
         self._next_i = 0
         self._last_t: float | None = None
-        self._answer_since: float | None = None  # an answer began at this time and is still arriving
-        self._cut: _Line | None = None  # the line whose answer the end of the data cut
+        self._answer_began: float | None = None  # a device line began at this time and is still arriving
+        self._cut: WaitingLine | None = None  # the line whose answer the end of the data cut
         self._cut_since: float | None = None  # when that cut answer began
+        self._late: WaitingLine | None = None  # a move whose guessed window closed: its answer may come late
 
-    def _v(self, rule: str, sentence: str, where: str = _BEHAVIOUR) -> Violation:
-        """A conversation-level violation of ``rule`` (``rules.RULES``): the sentence, the rule's
-        docs/protocol.md section, the code; its severity under this conversation's readings."""
-        code = rules.RULES[rule].code
-        return Violation(code, None, f"{sentence}; {where} ({code})", rule, self._severity[rule])
+    def _v(self, rule: str, sentence: Callable[..., str], *values: object) -> Violation:
+        """A conversation-level violation of ``rule`` (``rules.RULES``) under this conversation's
+        readings; its sentence is ``sentence(*values)``, made only when shown."""
+        return Violation.said(rules.RULES[rule].code, rule, self._severity[rule], sentence, *values)
+
+    def _regraded(self, reading: Reading) -> Reading:
+        """The decoder's reading of a host line (``codec.read_frame``), graded under ``readings``."""
+        violations = self._graded(reading.violations)
+        return reading._replace(violations=violations,
+                                error=reading.frame is None or any(v.is_error for v in violations))
 
     def _graded(self, violations: tuple[Violation, ...]) -> tuple[Violation, ...]:
         """The decoder's violations with their severity under ``readings`` (the decoder grades them by
@@ -358,8 +333,7 @@ class Conversation:
         if self.readings == rules.DEFAULT_READINGS or not violations:
             return violations
         sev = self._severity
-        return tuple(v if v.severity == sev[v.rule] else Violation(v.code, v.offset, v.message, v.rule,
-                                                                      sev[v.rule]) for v in violations)
+        return tuple(v if v.severity == sev[v.rule] else v.graded(sev[v.rule]) for v in violations)
 
     # ---- what callers ask ----
 
@@ -371,7 +345,7 @@ class Conversation:
     @property
     def expecting_answer(self) -> bool:
         """Does a well-formed command (not an error, not a line discarded during a move) wait?"""
-        return self._motion is not None or any(w.kind == _COMMAND for w in self._queue)
+        return self._motion is not None or any(w.kind == COMMAND for w in self._queue)
 
     @property
     def moving(self) -> bool:
@@ -391,6 +365,24 @@ class Conversation:
         """Seconds a command's answer may take after its last byte (silent item 17)."""
         return 2.0 * self.move_time(command) + self.no_answer_timeout
 
+    def latch_state(self) -> LatchState:
+        """Where the alarm latch stands (``latch.LatchState``), from what is known."""
+        k = self.knowledge
+        latched = k.latched.value
+        if latched is None:
+            return LatchState.FREE
+        if latched != spec.ALARM_ESTOP:
+            return LatchState.HELD
+        if self._stop_known_pressed():
+            return LatchState.STOP
+        return LatchState.STOP_UNSEEN if k.under_stop.value is None else LatchState.STOP_UNSEEN_OVER
+
+    def storm_state(self) -> StormState:
+        """Where the host stands in a run of communication errors (``latch.StormState``)."""
+        if self.knowledge.storm_run < self.storm_limit:
+            return StormState.CALM
+        return StormState.RECOVERING if self._reset_in_storm else StormState.STORM
+
     # ---- out-of-band facts ----
 
     def power_on(self) -> None:
@@ -408,22 +400,19 @@ class Conversation:
         ``unhomes``: the caller knows the axis must then be homed again (when the stop was on)."""
         k = self.knowledge
         was_on = k.stop_pressed.value is True or k.latched.value == spec.ALARM_ESTOP
+        state = self.latch_state()
         k.stop_pressed = Fact(pressed, KNOWN)
+        self._latch(state, LatchEvent.PRESS if pressed else LatchEvent.RELEASE, [], None, None)
         if pressed:
-            self._stop_over(k.latched)
             k.latched = Fact(spec.ALARM_ESTOP, KNOWN)
             k.position, k.outputs = _NOT_KNOWN, _NOT_KNOWN  # nothing stated of the OUT ports across a stop
-            return
-        if k.latched.value == spec.ALARM_ESTOP:  # an alarm held under the stop is latched again
-            k.latched = k.under_stop if k.under_stop.value is not None else Fact(None, KNOWN)
-            k.under_stop = _NOT_KNOWN
-        if unhomes and was_on:  # a release of a stop that was not on changes nothing
+        elif unhomes and was_on:  # a release of a stop that was not on changes nothing
             k.homed, k.position = Fact(False, KNOWN), _NOT_KNOWN
 
     def move_finished(self, now: float) -> None:
         """A caller knows the move under way has ended: its answer is due within the plain timeout."""
         if self._motion is not None:
-            self._motion.deadline = now + self.no_answer_timeout
+            self._queue.reschedule(self._motion, now + self.no_answer_timeout)
 
     # ---- events ----
 
@@ -431,29 +420,22 @@ class Conversation:
                    window: float | None = None) -> list[Verdict]:
         """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
         for its answer, when it says so (the client); else the engine's answer window."""
-        if t_first is None:
-            out = []
-        elif self._queue:  # lines wait: their windows may have closed
-            out = self.tick(t_first, self._answer_since)
-        else:  # the usual command: nothing waits, so time passing closes no window
-            out = []
-            if self._last_t is None or t_first > self._last_t:
-                self._last_t = t_first
+        out = [] if t_first is None else self.tick(t_first, self._answer_began)
         i = self._next_i
         self._next_i = i + 1
         if type(raw) is not bytes:
             raw = bytes(raw)
-        frame, violations, header, error = read_frame(raw, spec.COMMAND)
-        if violations and self.readings != rules.DEFAULT_READINGS:
-            violations = self._graded(violations)
-            error = frame is None or any(v.is_error for v in violations)
+        reading = read_frame(raw, spec.COMMAND)
+        if reading.violations and self.readings != rules.DEFAULT_READINGS:
+            reading = self._regraded(reading)
+        frame, violations, header, error = reading
         found = [*violations]
         if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
             found += self._host_duties(header, error)
         if error:
-            line = self._enqueue(i, _ERROR, header, None, t_last, found, window)
+            line = self._enqueue(i, ERROR, header, None, t_last, found, window)
         else:
-            line = self._enqueue(i, _COMMAND, header, frame, t_last, found, window, not violations)
+            line = self._enqueue(i, COMMAND, header, frame, t_last, found, window, not violations)
         out.append(_verdict(("host-frame", HOST, i, raw, header, frame, tuple(found), None, None, t_first,
                              t_last, line.waited_s)))
         return out
@@ -462,30 +444,21 @@ class Conversation:
                   window: float | None = None) -> list[Verdict]:
         """Host bytes that form no frame. A run ending in LF is a line the device must answer as an
         error (docs/protocol.md "Behaviour the vendor text states")."""
-        out = self._time(t_first)
+        out = self._time(t_first, self._answer_began)
         i = self._number()
-        found = [Violation("garbage", 0, f"{len(raw)} host bytes that form no frame: {show_bytes(raw)} "
-                           f"(garbage)")]
+        raw = bytes(raw)
+        found = [_garbage(HOST, raw)]
         if raw.endswith(b"\n"):
-            self._enqueue(i, _ERROR, None, None, t_last, found, window).junk = True
-        out.append(Verdict("host-junk", HOST, i, bytes(raw), violations=tuple(found), t=t_first,
-                           t_last=t_last))
+            self._enqueue(i, ERROR, None, None, t_last, found, window, junk=True)
+        out.append(Verdict("host-junk", HOST, i, raw, violations=tuple(found), t=t_first, t_last=t_last))
         return out
 
     def device_frame(self, raw: bytes, t_first: float | None = None,
                      t_last: float | None = None) -> list[Verdict]:
         """A frame-shaped device line: an answer. Its arrival passes time to ``t_first``: lines whose
         window closed before it began get ``no-answer`` (``tick``; an answer in time is in time)."""
-        queue = self._queue
-        out: list[Verdict] = []
-        if t_first is not None:
-            if self._last_t is None or t_first > self._last_t:
-                self._last_t = t_first
-            # (``_expire`` decides; while the head's window is open at the answer's start, nothing closes)
-            if queue and ((deadline := queue[0].deadline) is None or deadline < t_first):
-                self._answer_since = t_first
-                out = self._expire(t_first)
-        self._answer_since = None
+        out = [] if t_first is None else self.tick(t_first, t_first)
+        self._answer_began = None
         i = self._next_i
         self._next_i = i + 1
         if type(raw) is not bytes:
@@ -496,19 +469,18 @@ class Conversation:
             out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), None, None,
                                  t_first, t_last, None)))
             return out
-        line, skipped = self._pair(header, t_first)
+        if self._late is None:
+            line, skipped = self._pair(header, t_first)
+        else:
+            line, skipped = self._late_or_pair(header, t_first, found)
         if skipped:
             out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
         if line is None:
-            found.append(self._v("unsolicited-answer", f"{header or 'this'} answer with no command waiting "
-                            f"for it", _CODES))
-            reply_to = latency = None
-        else:
-            reply_to = line.i
-            latency = None if line.t_last is None or t_first is None else t_first - line.t_last
+            found.append(self._v("unsolicited-answer", sentences.unsolicited_answer, header))
         self._judge_answer(line, header, frame, found)
-        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), reply_to, latency,
-                             t_first, t_last, None)))
+        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found),
+                             None if line is None else line.i, _latency(line, t_first), t_first, t_last,
+                             None)))
         return out
 
     def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -516,54 +488,44 @@ class Conversation:
         """Device bytes that form no frame. A whole garbled line (ending in LF, or ``line_ended``: a
         partial line the device never finished) inside the head line's answer window is its garbled
         answer; bytes before a frame start are noise, never an answer."""
-        out = self._time(t_first, answer=True)
-        self._answer_since = None
+        out = self._time(t_first, t_first)
+        self._answer_began = None
         i = self._number()
-        found = [Violation("garbage", 0, f"{len(raw)} device bytes that form no frame: "
-                           f"{show_bytes(raw)} (garbage)")]
-        head = self._queue[0] if self._queue else None
+        raw = bytes(raw)
         line = None
-        whole = raw.endswith(b"\n") or line_ended
-        if whole and head is not None and head.kind != _DISCARD and (
-                t_first is None or head.deadline is None or t_first <= head.deadline):
+        if (raw.endswith(b"\n") or line_ended) and self._head_answered_at(t_first):
             line = self._queue.popleft()
             self._end_motion(line)
             self._outcome_unknown(line)
-        latency = None
-        if line is not None and line.t_last is not None and t_first is not None:
-            latency = t_first - line.t_last
-        out.append(Verdict("device-junk", DEVICE, i, bytes(raw), violations=tuple(found),
-                           reply_to=None if line is None else line.i, latency_s=latency, t=t_first,
-                           t_last=t_last))
+        out.append(Verdict("device-junk", DEVICE, i, raw, violations=(_garbage(DEVICE, raw),),
+                           reply_to=None if line is None else line.i, latency_s=_latency(line, t_first),
+                           t=t_first, t_last=t_last))
         return out
 
     def tick(self, now: float, answer_since: float | None = None) -> list[Verdict]:
         """Time passes to ``now``: lines whose answer window closed get ``no-answer``. ``answer_since``:
         a device line began at this time and is still arriving (an answer that starts in time is in
-        time)."""
+        time). One comparison while no window can close (``Waiting.due``)."""
         last = self._last_t
         if last is None or now > last:
             self._last_t = now
-        self._answer_since = answer_since
-        queue = self._queue
-        if not queue:
+        self._answer_began = answer_since
+        if not self._queue.due < now:
             return []
-        deadline = queue[0].deadline
-        if len(queue) == 1 and (deadline is None or not deadline < now):
-            return []  # the usual tick: the one line waiting is still in its window
-        return self._expire(now)
+        return self._expire(now, answer_since)
 
     def ended_inside_frame(self, sender: spec.Side, raw: bytes, t_first: float | None = None,
                            t_last: float | None = None) -> list[Verdict]:
         """The data ended inside a frame of ``sender`` (a capture file or a proxy stopped mid-line): the
         recording ended, not the sender, so no violation. Device bytes that began inside the head line's
         answer window are its answer, cut: that line is cut short at ``close()``, never ``no-answer``."""
-        out = self._time(t_first, answer=sender == DEVICE)
+        device = sender == DEVICE
+        out = self._time(t_first, t_first if device else self._answer_began)
         i = self._number()
-        head = self._queue[0] if self._queue else None
         reply_to = None
-        if sender == DEVICE and head is not None and head.kind != _DISCARD and (
-                t_first is None or head.deadline is None or t_first <= head.deadline):
+        if device and self._head_answered_at(t_first):
+            head = self._queue.head
+            assert head is not None
             self._cut, self._cut_since, reply_to = head, t_first, head.i
         out.append(Verdict("cut", sender, i, bytes(raw), reply_to=reply_to, t=t_first, t_last=t_last))
         return out
@@ -573,23 +535,24 @@ class Conversation:
         without time, every line still owed an answer does, but one whose answer the end cut
         (``ended_inside_frame``). Returns also the lines cut short (``waiting`` afterwards tells none is
         left)."""
-        self._answer_since = self._cut_since if self._cut is not None else None
         end = now if now is not None else self._last_t
-        out = self._expire(end) if end is not None else []
-        self._answer_since = None
-        keep: deque[_Line] = deque()
+        since = self._cut_since if self._cut is not None else None
+        out = self._expire(end, since) if end is not None else []
+        out += self._late_unanswered(None)
+        self._answer_began = None
+        keep: deque[WaitingLine] = deque()
         for w in self._queue:
             if w.deadline is None and w.owed and w is not self._cut:
                 out.append(self._no_answer(w, None))
             elif w.owed:
                 keep.append(w)
-        self._queue = keep
+        self._queue.keep(keep)
         return out
 
     def host_gave_up(self, now: float | None = None) -> list[Verdict]:
         """The host stopped waiting (the client's timeout): every line still owed an answer is
         ``no-answer`` now."""
-        out = []
+        out = self._late_unanswered(now)
         while self._queue:
             w = self._queue.popleft()
             self._end_motion(w)
@@ -614,84 +577,99 @@ class Conversation:
         self._next_i += 1
         return i
 
-    def _time(self, t: float | None, answer: bool = False) -> list[Verdict]:
-        if t is None:
-            return []
-        return self.tick(t, t if answer else self._answer_since)
+    def _time(self, t: float | None, since: float | None) -> list[Verdict]:
+        return [] if t is None else self.tick(t, since)
+
+    def _head_answered_at(self, t: float | None) -> bool:
+        """Do device bytes that began at ``t`` answer the head line (one not discarded, in its window)?"""
+        head = self._queue.head
+        return head is not None and head.kind != DISCARD and self._queue.open_at(head, t)
 
     def _enqueue(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
-                 found: list[Violation], window: float | None = None, plain: bool = False) -> _Line:
+                 found: list[Violation], window: float | None = None, plain: bool = False,
+                 junk: bool = False) -> WaitingLine:
         """Queue a host line, judging when it was sent (docs/protocol.md "Framing": strict request/answer);
         a well-formed move sent while nothing is latched is the move under way."""
         overlapped = False
         if self._motion is not None or self._queue:
             kind, overlapped = self._sent_while_waiting(kind, header, t_last, found)
-        is_move = kind == _COMMAND and header in spec.MOVE_HEADERS
-        if window is None:
-            window = self.answer_window(frame) if is_move and frame is not None else self.no_answer_timeout
-        line = _Line(i, kind, header, frame, t_last, None if t_last is None else t_last + window, window,
-                     overlapped, is_move, plain)
+        move = frame if kind == COMMAND and header in spec.MOVE_HEADERS else None
+        waited_s, guessed = self._window_for(move, window)
+        line = WaitingLine(i, kind, header, frame, t_last, waited_s, overlapped, move is not None, plain,
+                           junk, guessed)
         if self.one_way:  # its answer cannot be in the data: counted, not kept
             self.unanswerable += 1
             return line
         self._queue.append(line)
-        if is_move and not overlapped and self.knowledge.latched.value is None:
+        if move is not None and not overlapped and self.knowledge.latched.value is None:
             self._motion = line
         return line
+
+    def _window_for(self, move: Frame | None, window: float | None) -> tuple[float, bool]:
+        """A line's answer window, and whether it rests on the guessed speed table: ``window`` when the
+        host says how long it waits (the client), a move's (``answer_window``), else the timeout."""
+        if window is not None:
+            return window, False
+        if move is None:
+            return self.no_answer_timeout, False
+        return self.answer_window(move), self.speeds.guessed
 
     def _sent_while_waiting(self, kind: str, header: str | None, t_last: float | None,
                             found: list[Violation]) -> tuple[str, bool]:
         """A host line sent while a move's answer or another line's is awaited: its kind (discarded during
         a move) and whether it overlaps a line owed an answer."""
-        what = header or "this line"
         if self._motion is not None:
-            found.append(self._v("command-during-motion", f"{what} sent while the move {self._motion.name()} "
-                            f"waits for its answer"))
-            return _DISCARD, False
+            found.append(self._v("command-during-motion", sentences.command_during_motion, header,
+                                 self._motion.header, self._motion.i))
+            return DISCARD, False
         first = next((w for w in self._queue if w.owed), None)
         if first is None:
             return kind, False
-        detail = f"{what} sent before the answer to {first.name()}"
-        if first.t_last is None and t_last is None:
-            detail += (f"; the capture has no time, so this looks the same as {first.name()} left "
-                       f"unanswered and the host going on after waiting (no-answer)")
-        found.append(self._v("overlapping-command", detail, 'docs/protocol.md "Framing"'))
+        found.append(self._v("overlapping-command", sentences.overlapping_command, header, first.header,
+                             first.i, first.t_last is None and t_last is None))
         return kind, True
 
-    def _pair(self, header: str | None, t: float | None) -> tuple[_Line | None, list[_Line] | tuple[()]]:
+    def _pair(self, header: str | None, t: float | None) -> tuple[WaitingLine | None,
+                                                                  list[WaitingLine] | tuple[()]]:
         """The line an answer belongs to, and the lines it shows were skipped (module docstring): the
         first line of its header sent before the answer began (a line discarded during a move only when
         it alone waits); the usual answer is the head's, nothing skipped."""
         queue = self._queue
-        chosen: _Line | None = None
-        if queue and header is not None and header != _ALARM:
-            alone = len(queue) == 1
-            for w in queue:
-                if w.header == header and (t is None or w.t_last is None or w.t_last <= t) \
-                        and (alone or w.kind != _DISCARD):
-                    chosen = w
-                    break
-            if chosen is queue[0]:
-                queue.popleft()
-                if self._motion is chosen:
-                    self._motion = None
-                return chosen, _NOTHING_SKIPPED
+        chosen = self._line_of(header, t) if queue and header is not None and header != _ALARM else None
+        if chosen is not None and chosen is queue[0]:
+            queue.popleft()
+            self._end_motion(chosen)
+            return chosen, _NOTHING_SKIPPED
         return self._pair_past(chosen, header)
 
-    def _pair_past(self, chosen: _Line | None, header: str | None) -> tuple[_Line | None, list[_Line]]:
+    def _line_of(self, header: str, t: float | None) -> WaitingLine | None:
+        """The first waiting line of ``header`` sent before ``t`` (a discarded one only when alone)."""
+        alone = len(self._queue) == 1
+        for w in self._queue:
+            if w.header == header and (t is None or w.t_last is None or w.t_last <= t) \
+                    and (alone or w.kind != DISCARD):
+                return w
+        return None
+
+    def _first_fitting(self, header: str | None) -> WaitingLine | None:
+        """The first line an answer of ``header`` that is no line's own fits: one not discarded during a
+        move (a discarded one only when it alone waits and the answer fits it; an alarm fits any)."""
+        alone = len(self._queue) == 1
+        for w in self._queue:
+            fits = header == _ALARM or (w.header is not None and w.header == header)
+            if w.kind != DISCARD or (alone and fits):
+                return w
+        return None
+
+    def _pair_past(self, chosen: WaitingLine | None, header: str | None) -> tuple[WaitingLine | None,
+                                                                                    list[WaitingLine]]:
         """``_pair`` when the answer is not the head's: ``chosen``, the line of its header, else the first
-        line not discarded during a move (an alarm answer fits any line; a discarded line only when it
-        alone waits and the answer fits it); the lines before it were skipped."""
-        queue = self._queue
+        line it fits; the lines before it were skipped."""
         if chosen is None:
-            for w in queue:
-                fits = header == _ALARM or (w.header is not None and w.header == header)
-                if w.kind != _DISCARD or (fits and len(queue) == 1):
-                    chosen = w
-                    break
-        skipped: list[_Line] = []
-        while queue:
-            w = queue.popleft()
+            chosen = self._first_fitting(header)
+        skipped: list[WaitingLine] = []
+        while self._queue:
+            w = self._queue.popleft()
             self._end_motion(w)
             if w is chosen:
                 return w, skipped
@@ -699,228 +677,212 @@ class Conversation:
             self._outcome_unknown(w)
         return None, skipped
 
-    def _end_motion(self, w: _Line) -> None:
+    def _end_motion(self, w: WaitingLine) -> None:
         if self._motion is w:
             self._motion = None
 
-    def _expire(self, now: float) -> list[Verdict]:
+    def _expire(self, now: float, since: float | None) -> list[Verdict]:
+        """``no-answer`` for each line whose window closed by ``now`` (``Waiting.closed``; ``since``: an
+        answer began then and is still arriving)."""
         out: list[Verdict] = []
-        head = self._queue[0] if self._queue else None
-        if head is None or (self._answer_since is not None and head.deadline is not None
-                            and self._answer_since <= head.deadline):
-            return out
-        if len(self._queue) == 1:
-            if head.deadline is None or not head.deadline < now:
-                return out  # its window is still open (the usual tick)
-        elif all(w.deadline is None or not w.deadline < now for w in self._queue):
-            return out
-        keep: deque[_Line] = deque()
-        for w in self._queue:
-            if w.deadline is not None and w.deadline < now:
-                self._end_motion(w)
-                self._outcome_unknown(w)
-                if w.owed:
-                    out.append(self._no_answer(w, w.deadline))
-            else:
-                keep.append(w)
-        self._queue = keep
+        for w in self._queue.closed(now, since):
+            self._end_motion(w)
+            self._outcome_unknown(w)
+            if w.owed and w.guessed:  # its answer may yet come: judged when it does, or when it cannot
+                out += self._late_unanswered(None)
+                self._late = w
+            elif w.owed:
+                out.append(self._no_answer(w, w.deadline))
         return out
 
-    def _no_answer(self, w: _Line, t: float | None, skipped_by: int | None = None) -> Verdict:
-        owed = "an alarm answer (an error must be answered with one)" if w.kind == _ERROR else "its answer"
-        if skipped_by is not None:
-            when = f"the device answered a later line instead (#{skipped_by})"
-        elif t is None:
-            when = "the data ended first"
-        else:
-            when = f"nothing came within {w.waited_s:.3f} s of its last byte"
-        rule = "no-answer-junk" if w.junk else "no-answer-error" if w.kind == _ERROR else "no-answer"
-        violation = self._v(rule, f"{w.name()} got no answer: it is owed {owed}, but {when}")
+    def _late_unanswered(self, t: float | None) -> list[Verdict]:
+        """The late move (``_late``), if any, got no answer after all: its ``no-answer`` (at ``t``;
+        None: when its window closed)."""
+        late, self._late = self._late, None
+        if late is None:
+            return []
+        return [self._no_answer(late, late.deadline if t is None else t)]
+
+    def _late_or_pair(self, header: str | None, t: float | None,
+                      found: list[Violation]) -> tuple[WaitingLine | None, list[WaitingLine] | tuple[()]]:
+        """``_pair`` while a move whose window rested on the guessed speed table waits late (``_late``):
+        an answer of its header that no waiting line claims is its answer, late (``late-move-answer``, a
+        notice: silent items 15, 17); any other answer shows it got none (``no-answer``)."""
+        late, self._late = self._late, None
+        assert late is not None
+        if header is not None and header == late.header and self._line_of(header, t) is None:
+            found.append(self._v("late-move-answer", sentences.late_move_answer, late.header, late.i,
+                                 _latency(late, t), late.waited_s))
+            return late, _NOTHING_SKIPPED
+        line, skipped = self._pair(header, t)
+        return line, [late, *skipped]
+
+    def _no_answer(self, w: WaitingLine, t: float | None, skipped_by: int | None = None) -> Verdict:
+        rule = "no-answer-junk" if w.junk else "no-answer-error" if w.kind == ERROR else "no-answer"
+        waited = None if t is None else w.waited_s
+        violation = self._v(rule, sentences.no_answer, w.header, w.i, w.kind == ERROR, skipped_by, waited)
         return Verdict("no-answer", HOST, None, header=w.header, violations=(violation,), reply_to=w.i,
-                       t=t, waited_s=None if t is None else w.waited_s)
+                       t=t, waited_s=waited)
 
     # ---- host duties ----
 
     def _host_duties(self, header: str | None, error: bool) -> list[Violation]:
         """Storm and alarm-ignored (docs/protocol.md "Behaviour the vendor text states": host duty,
-        latched alarm)."""
+        latched alarm): the storm run's table (``latch.HOST_DUTY``) and the reset owed."""
         k = self.knowledge
         out = []
-        what = header or "this frame"
         good_reset = header == spec.RESET_HEADER and not error
-        if k.storm_run >= self.storm_limit and (good_reset or self._reset_in_storm):
-            which = "an alarm reset" if good_reset else "the first command after a successful alarm reset"
-            out.append(self._v("storm-recovery",
-                               f"{what}, {which}, sent after {k.storm_run} communication-error "
-                          f"answers (0%%01) in a row: recovering, which the vendor text does not forbid"))
-        elif k.storm_run >= self.storm_limit:
-            out.append(self._v("comm-error-storm",
-                               f"{what} sent after {k.storm_run} communication-error answers "
-                          f"(0%%01) in a row; the host must stop after {self.storm_limit}"))
+        duty = HOST_DUTY[(self.storm_state(), good_reset)]
+        if duty == "storm-recovery":
+            out.append(self._v(duty, sentences.storm_recovery, header, k.storm_run, good_reset))
+        elif duty == "comm-error-storm":
+            out.append(self._v(duty, sentences.comm_error_storm, header, k.storm_run, self.storm_limit))
         self._reset_in_storm = False
         if self._unreset_alarm and not good_reset:
-            out.append(self._v("alarm-ignored",
-                               f"{what} sent after an alarm answer without an alarm reset (0%C)"))
+            out.append(self._v("alarm-ignored", sentences.alarm_ignored, header))
         if good_reset:
             self._unreset_alarm = False
         return out
 
     # ---- the answer's rules ----
 
-    def _judge_answer(self, line: _Line | None, header: str | None, frame: Frame | None,
+    def _judge_answer(self, line: WaitingLine | None, header: str | None, frame: Frame | None,
                       found: list[Violation]) -> None:
-        # the storm run (host duty): ``0%%01`` answers count, the reset answer neither counts nor ends
-        # it, any other answer ends it, a faulty one too; an unreadable line (or alarm code) does neither
-        k = self.knowledge
-        if header == _ALARM:
-            if frame is not None:
-                code = frame.code  # type: ignore[attr-defined]
-                k.storm_run = k.storm_run + 1 if code == spec.ALARM_COMM else 0
-                self._alarm(line, code, found)
-            elif line is not None:
-                self._outcome_unknown(line)
+        """The rules of an answer to ``line`` (None: unsolicited). The storm run (host duty): ``0%%01``
+        answers count, the reset answer neither counts nor ends it, any other answer ends it, a faulty one
+        too; an unreadable line (or alarm code) does neither."""
+        if header == _ALARM and frame is not None:
+            self._alarm(line, frame.code, found)  # type: ignore[attr-defined]
             return
-        if header is None:
-            if line is not None:
-                self._outcome_unknown(line)
+        if header not in _KEEPS_STORM_RUN:
+            self.knowledge.storm_run = 0
+        if line is None:  # (unsolicited: nothing it says is trusted)
             return
-        if header != _RESET:
-            k.storm_run = 0
-        if frame is None or line is None:  # (unsolicited: nothing it says is trusted)
-            if line is not None:
-                self._outcome_unknown(line)
-            return
-        if line.kind == _ERROR:
-            found.append(self._v("error-accepted",
-                                 f"{header} answer to {line.name()}, which breaks the frame "
-                            f"table: an error is answered with an alarm answer (0%%Ec)"))
+        if frame is None or header is None:
             self._outcome_unknown(line)
-            return
-        if header == _RESET and line.is_reset:
-            self._reset_done(found)
-            return
-        if k.latched.value is not None:
-            self._latch_on_normal_answer(line, found)
-        elif k.stop_cleared.value is not None:  # answered normally after the release: the alarm the
-            k.stop_cleared = _NOT_KNOWN  # reset cleared did not come back; a later one is new
+        elif line.kind == ERROR:
+            found.append(self._v("error-accepted", sentences.error_accepted, header, line.header, line.i))
+            self._outcome_unknown(line)
+        elif line.is_reset:
+            self._reset_answered(line, header, frame, found)
+        else:
+            self._normal_answer(line, header, frame, found)
+
+    def _normal_answer(self, line: WaitingLine, header: str, frame: Frame, found: list[Violation]) -> None:
+        """A normal answer to a well-formed command: the latch, the pairing, then what a clean exchange
+        establishes (judged against the mode before it; silent item 11: communicating gives mode 1)."""
+        k = self.knowledge
+        if k.latched.value is not None or k.stop_cleared.value is not None:  # else the latch has nothing
+            self._latch(self.latch_state(), LatchEvent.NORMAL, found, line, None)  # to say (FREE: no rule)
         command = line.frame
         if command is not None and self._pairing(line, command, header, frame, found) \
-                and not (found and _is_error(found)):  # a clean exchange: what it establishes
-            learn = _LEARNERS.get(header)  # (judged against the mode before this exchange)
+                and not (found and _is_error(found)):
+            learn = HEADER_RULES[header].learn
             if learn is not None:
                 learn(self, command, frame, found)
             if header != SwitchMode.HEADER:
-                k.mode = _MODE_1  # silent item 11: communicating gives mode 1
+                k.mode = _MODE_1
         else:
             self._outcome_unknown(line)
 
-    def _alarm(self, line: _Line | None, code: int, found: list[Violation]) -> None:
-        """An alarm answer: it latches (00 latches nothing, silent item 12); a latched code never changes
-        but to emergency stop; a reset clears all but 0E; a refused command takes no effect (item 18)."""
-        k = self.knowledge
-        latched = k.latched.value
-        released = latched == spec.ALARM_ESTOP and not self._stop_known_pressed()  # perhaps, unseen
-        if line is not None and line.is_reset and code != spec.ALARM_ESTOP:
-            found.append(self._v("reset-refused", f"the alarm reset {line.name()} was answered with alarm "
-                            f"{code:02X}: 0%C clears every alarm but emergency stop (0E) and answers 0%C00"))
-        elif code == k.stop_cleared.value and code != spec.ALARM_ESTOP and line is not None \
-                and line.kind == _COMMAND and line.plain and line.header in _RAISES_NO_ALARM:
-            found.append(self._v("stop-alarm-back",
-                                 f"alarm {code:02X} answers {line.name()} after the emergency "
-                            f"stop, but the alarm reset during the stop cleared it: 0%C clears every alarm "
-                            f"but emergency stop (0E)"))
-        elif latched is not None and code not in (latched, spec.ALARM_ESTOP) and k.latched.judged \
-                and not released:
-            found.append(self._v("latch-code-changed",
-                                 f"alarm {latched:02X} is latched, but the answer is alarm "
-                            f"{code:02X}: a latched alarm is repeated until a reset"))
-        if code == spec.ALARM_ESTOP and latched != spec.ALARM_ESTOP:
-            self._stop_over(k.latched)
-        if line is not None and line.is_reset and code == spec.ALARM_ESTOP:
-            k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
-        elif code != spec.ALARM_ESTOP and released:  # the stop was released unseen: held or new alarm
-            k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
-        elif code not in (spec.ALARM_ESTOP, spec.ALARM_NONE):  # a new alarm latched after the stop: what
-            k.stop_cleared = _NOT_KNOWN  # the reset cleared during it is history, this one is the latched one
-        if code != spec.ALARM_NONE:
-            k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
-            if line is None or not line.is_reset:
-                self._unreset_alarm = True
-        if code == spec.ALARM_ESTOP:
-            k.position, k.outputs = _NOT_KNOWN, _NOT_KNOWN  # nothing stated of the OUT ports across a stop
-        elif code == spec.ALARM_HOMING:  # homing failed: homed or not is learnt from 0RC ("Alarms")
-            k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN
-        if line is not None:
-            k.mode = Fact(1, KNOWN)  # silent item 11: a refused line is communication too
-            self._end_motion(line)
-            if line.is_move:
-                k.position = _NOT_KNOWN  # it may have stopped anywhere (item 19)
-                if k.homed.value is not True:
-                    k.homed = _NOT_KNOWN  # it may have homed first ("Alarms": homing after each alarm)
-
-    def _reset_done(self, found: list[Violation]) -> None:
-        """0%C answered 0%C00: every alarm but 0E clears. Whether 0E was still on is known only where the
-        stop input is known (silent item 3); from the line alone the release happened unseen."""
+    def _reset_answered(self, line: WaitingLine, header: str, frame: Frame, found: list[Violation]) -> None:
+        """The reset (0%C) answered normally: 0%C00 clears the latch (``latch.LATCH``); another command's
+        answer is answer-mismatch and what the reset did is unknown."""
+        if header != _RESET:
+            self._latch(self.latch_state(), LatchEvent.RESET_MISMATCHED, found, line, None)
+            self._pairing(line, line.frame, header, frame, found)  # type: ignore[arg-type]
+            self._outcome_unknown(line)
+            return
         k = self.knowledge
         k.mode = Fact(1, KNOWN)  # silent item 11: communicating gives mode 1
         self._reset_in_storm = k.storm_run >= self.storm_limit
-        if k.stop_pressed.value is True and k.stop_pressed.status == KNOWN:
-            found.append(self._v("estop-cleared",
-                                 "the alarm reset answered 0%C00 while the emergency stop input "
-                            "is pressed: emergency stop (0E) stays latched until the input is released"))
-            return  # the device is wrong; the stop is still on
-        if k.latched.value == spec.ALARM_ESTOP:
-            k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN  # released unseen: what the axis does is item 3
-        k.latched = Fact(None, KNOWN)
-        k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
+        pressed = LatchEvent.RESET_DONE_PRESSED if self._stop_known_pressed() else LatchEvent.RESET_DONE
+        self._latch(self.latch_state(), pressed, found, line, None)
 
-    def _latch_on_normal_answer(self, line: _Line, found: list[Violation]) -> None:
+    def _alarm(self, line: WaitingLine | None, code: int, found: list[Violation]) -> None:
+        """An alarm answer: the storm run counts ``0%%01``; the latch's table judges and moves
+        (``latch.LATCH``); the code latches (00 latches nothing, silent item 12); a refused command takes
+        no effect (item 18), but a move may have stopped anywhere."""
         k = self.knowledge
-        latched = k.latched.value
-        if latched is None or line.is_reset:
-            return
-        if latched == spec.ALARM_ESTOP and not self._stop_known_pressed():
-            under = k.under_stop.value
-            if under is not None and k.under_stop.judged:
-                found.append(self._v("stop-alarm-back",
-                                     f"{line.header} got a normal answer after the emergency "
-                                f"stop, but alarm {under:02X} was latched before it and no reset cleared it"))
-            k.latched = Fact(None, KNOWN)  # the stop input was released (silent item 3)
-            k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN
-            k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
-            return
-        found.append(self._v("latch-broken", f"{line.header} got a normal answer while alarm {latched:02X} "
-                        f"({spec.alarm_meaning(latched)}) should still be latched"))
+        k.storm_run = k.storm_run + 1 if code == spec.ALARM_COMM else 0
+        event = self._alarm_event(line, code)
+        self._latch(self.latch_state(), event, found, line, code)
+        kind = ALARM_EVENTS[event]
+        if kind.latches:
+            k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
+        if kind.owes_reset:
+            self._unreset_alarm = True
+        for name in _ALARM_FORGETS.get(code, ()):
+            setattr(k, name, _NOT_KNOWN)
+        if line is not None:
+            self._refused(line)
+
+    def _alarm_event(self, line: WaitingLine | None, code: int) -> LatchEvent:
+        """What an alarm answer with ``code`` to ``line`` is to the latch (``latch.LatchEvent``)."""
+        if line is not None and line.is_reset:
+            return _RESET_ALARM_EVENTS.get(code, LatchEvent.RESET_REFUSED)
+        event = _CODE_EVENTS.get(code)
+        if event is not None:
+            return event
+        k = self.knowledge
+        if line is not None and line.harmless and code == k.stop_cleared.value:
+            return LatchEvent.CLEARED_BACK
+        return LatchEvent.SAME if code == k.latched.value else LatchEvent.OTHER
+
+    def _latch(self, state: LatchState, event: LatchEvent, found: list[Violation], line: WaitingLine | None,
+               code: int | None) -> None:
+        """Look ``(state, event)`` up in ``latch.LATCH``: record the rule it breaks, apply its effect."""
+        rule, effect = _LATCH_CELLS[(state, event)]
+        if rule is not None:
+            found.append(self._latch_violation(rule, line, code))
+        effect(self.knowledge)
+
+    def _latch_violation(self, rule: str, line: WaitingLine | None, code: int | None) -> Violation:
+        """The violation of a latch rule, with the values its sentence needs."""
+        k = self.knowledge
+        header, i = (None, 0) if line is None else (line.header, line.i)
+        if rule == "stop-alarm-back":
+            if code is None:  # a normal answer: the alarm held under the stop is lost
+                return self._v(rule, sentences.held_alarm_lost, header, k.under_stop.value)
+            return self._v(rule, sentences.cleared_alarm_back, header, i, code)
+        if rule == "latch-broken":
+            return self._v(rule, sentences.latch_broken, header, k.latched.value)
+        if rule == "latch-code-changed":
+            return self._v(rule, sentences.latch_code_changed, k.latched.value, code)
+        if rule == "reset-refused":
+            return self._v(rule, sentences.reset_refused, header, i, code)
+        return self._v(rule, sentences.estop_cleared)
+
+    def _refused(self, line: WaitingLine) -> None:
+        """``line`` was answered with an alarm: it took no effect (silent item 18), but a move may have
+        stopped anywhere (item 19) and may have homed first ("Alarms": homing after each alarm)."""
+        k = self.knowledge
+        k.mode = Fact(1, KNOWN)  # silent item 11: a refused line is communication too
+        self._end_motion(line)
+        if line.is_move:
+            k.position = _NOT_KNOWN
+            if k.homed.value is not True:
+                k.homed = _NOT_KNOWN
 
     def _stop_known_pressed(self) -> bool:
         k = self.knowledge
         return k.stop_pressed.value is True and k.stop_pressed.status == KNOWN
 
-    def _stop_over(self, latched: Fact[int]) -> None:
-        """Emergency stop latches over ``latched``: that alarm is held under it until a reset."""
-        k = self.knowledge
-        if latched.value != spec.ALARM_ESTOP:
-            k.under_stop, k.stop_cleared = latched, Fact(None, KNOWN)
-
-    def _pairing(self, line: _Line, cmd: Frame, header: str, frame: Frame, found: list[Violation]) -> bool:
+    def _pairing(self, line: WaitingLine, cmd: Frame, header: str, frame: Frame,
+                 found: list[Violation]) -> bool:
         """Answer-mismatch and echo-mismatch (docs/protocol.md "Frames"; echoes judged by fields, never
         bytes) of the answer ``frame`` to ``line``'s command ``cmd``. True when the answer fits it."""
         if header != line.header:
-            found.append(self._v("answer-mismatch", f"{header} answer to the {line.name()} command", _CODES))
+            found.append(self._v("answer-mismatch", sentences.answer_mismatch, header, line.header, line.i))
             return False
         if header in _ECHOED:
             if tuple.__ne__(frame, cmd):
-                mine, theirs = frame.fields(), cmd.fields()
-                diff = ", ".join(f"{spec.FIELDS[k].label} {_show(k, v)} (sent {_show(k, theirs.get(k))})"
-                                 for k, v in mine.items() if theirs.get(k) != v)
-                found.append(self._v("echo-mismatch",
-                                     f"{header} echo differs from the command {line.name()}: "
-                                f"{diff}"))
+                found.append(self._v("echo-mismatch", sentences.echo_mismatch, header, line.header, line.i,
+                                     frame, cmd))
                 return False
         elif header in _BOTH_N and frame.n != cmd.n:  # type: ignore[attr-defined]
-            found.append(self._v("answer-mismatch",
-                                 f"{header} answer for N={frame.n:X} to the command "  # type: ignore[attr-defined]
-                            f"{line.name()} for N={cmd.n:X}", _CODES))  # type: ignore[attr-defined]
+            found.append(self._v("answer-mismatch", sentences.answer_for_other_n, header,
+                                 frame.n, line.header, line.i, cmd.n))  # type: ignore[attr-defined]
             return False
         return True
 
@@ -928,8 +890,7 @@ class Conversation:
 
     def _readback(self, found: list[Violation], what: str, seen: object, fact: Fact[T], how: str,
                   rule: str = "readback-mismatch") -> None:
-        found.append(self._v(rule, f"{what} reads back {seen}, but the conversation "
-                        f"{'established' if fact.status == KNOWN else 'read earlier'} {how}"))
+        found.append(self._v(rule, sentences.readback, what, seen, fact.status == KNOWN, how))
 
     def _on_switch_mode(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0CM: the mode sent; after 0CM0 the external I/O owns the controller until the next line."""
@@ -941,12 +902,10 @@ class Conversation:
             if k.homed.value is not True:
                 k.homed = _NOT_KNOWN
 
-
     def _on_write_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WP: the point is what was written."""
         k = self.knowledge
         k.points[c.n] = Fact(PointData(c.v, c.a, c.o, c.pos), KNOWN)  # type: ignore[attr-defined]
-
 
     def _on_store_current(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WC: the point stored at the position (V, A, O learnt: silent item 4)."""
@@ -1013,48 +972,44 @@ class Conversation:
         position while the axis is known not homed only where the mode is known 1 throughout (in mode 0,
         after a power-on or an unseen power cycle, the external I/O may home it: §7 (10), silent item 11);
         after a move, where the move went."""
+        if self._unhomed_judged(a, found):
+            return
         k = self.knowledge
-        unknown = a.pos == spec.UNKNOWN_POSITION
-        if unknown and (a.n, a.v, a.a) != (0, 0, 0):
-            self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", Fact(False, KNOWN),
-                           "Pos FFFFFF, which comes with N, V, A 0", "readback-unhomed")
-            return
-        if k.homed.value is False and k.homed.status == KNOWN and k.mode == _MODE_1 and not unknown:
-            self._readback(found, "0RC", f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}", k.homed,
-                           "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)",
-                           "readback-unhomed")
-            return
-        if unknown:  # the device states it is not homed: learnt, never judged (an unseen power cycle...)
-            k.homed, k.position = Fact(False, LEARNT), _NOT_KNOWN
+        if a.pos == spec.UNKNOWN_POSITION:  # the device states it is not homed: learnt, never judged (an
+            k.homed, k.position = Fact(False, LEARNT), _NOT_KNOWN  # unseen power cycle...)
             k.outputs = _NOT_KNOWN  # nothing is stated of the OUT ports across a power cycle
-            return
-        if k.position.judged and a.pos != k.position.value:
+        elif k.position.judged and a.pos != k.position.value:
             self._readback(found, "0RC's Pos", f"{a.pos:06X}", k.position,
                            f"the axis at {k.position.value:06X}", "readback-position")
-            return
-        if k.homed.value is not True:
-            k.homed = Fact(True, LEARNT)
-        if not k.position.judged:  # else it is what was read (a mismatch returned above)
-            k.position = Fact(a.pos, LEARNT)
-
-    def _outcome_unknown(self, line: _Line) -> None:
-        """A line whose answer is missing, garbled or faulty: what it would change is unknown now."""
-        k = self.knowledge
-        c = line.frame
-        if line.is_move or isinstance(c, (MovePoint, MoveDirect)):
-            k.position = _NOT_KNOWN
+        else:
             if k.homed.value is not True:
-                k.homed = _NOT_KNOWN
-        if c is None:
-            return
-        if c.header in ("0WP", "0WC") and hasattr(c, "n"):
-            k.points.pop(c.n, None)
-        elif c.header == "0WS" or (isinstance(c, MovePoint) and c.n):
-            k.outputs = _NOT_KNOWN
-        elif c.header == "0CM":
-            k.mode = _NOT_KNOWN
-        elif line.is_reset:
-            k.latched = _NOT_KNOWN
+                k.homed = Fact(True, LEARNT)
+            if not k.position.judged:
+                k.position = Fact(a.pos, LEARNT)
+
+    def _unhomed_judged(self, a: ReadCurrentAnswer, found: list[Violation]) -> bool:
+        """readback-unhomed of a 0RC answer: FFFFFF with N, V or A not 0; a homed position while the axis
+        is known not homed in mode 1. True when found."""
+        k = self.knowledge
+        unknown = a.pos == spec.UNKNOWN_POSITION
+        shown = f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}"
+        if unknown and (a.n, a.v, a.a) != (0, 0, 0):
+            self._readback(found, "0RC", shown, Fact(False, KNOWN), "Pos FFFFFF, which comes with N, V, A 0",
+                           "readback-unhomed")
+            return True
+        if k.homed.value is False and k.homed.status == KNOWN and k.mode == _MODE_1 and not unknown:
+            self._readback(found, "0RC", shown, k.homed,
+                           "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)",
+                           "readback-unhomed")
+            return True
+        return False
+
+    def _outcome_unknown(self, line: WaitingLine) -> None:
+        """A line whose answer is missing, garbled or faulty: what it would change is unknown now (the
+        ``forget`` column of its header's row)."""
+        c = line.frame
+        if c is not None:
+            HEADER_RULES[c.header].forget(self.knowledge, c, line.kind == COMMAND)
 
     # ---- move time (silent items 15, 17) ----
 
@@ -1084,21 +1039,135 @@ class Conversation:
 _MODE_1: Final = Fact(1, KNOWN)
 _HOMED: Final = Fact(True, KNOWN)
 
-# The knowledge each command reads and writes on a clean exchange, one handler a header (``_judge_answer``),
-# and the read-backs it is judged against;
-# 0%C changes only the mode (and the latch, in ``_reset_done``).
-_LEARNERS: Final[dict[str, Callable[..., None]]] = {
-    ReadPoint.HEADER: Conversation._on_read_point,
-    WritePoint.HEADER: Conversation._on_write_point,
-    ReadCurrent.HEADER: Conversation._on_read_current,
-    StoreCurrent.HEADER: Conversation._on_store_current,
-    MovePoint.HEADER: Conversation._on_move_point,
-    MoveDirect.HEADER: Conversation._on_move_direct,
-    ReadOutputs.HEADER: Conversation._on_read_outputs,
-    WriteOutputs.HEADER: Conversation._on_write_outputs,
-    ReadVersion.HEADER: Conversation._on_read_version,
-    SwitchMode.HEADER: Conversation._on_switch_mode,
+
+def _garbage(side: spec.Side, raw: bytes) -> Violation:
+    """Junk: bytes that form no frame (docs/protocol.md "Framing"); its sentence made when shown."""
+    return Violation.said("garbage", "garbage", rules.severity("garbage"), sentences.garbage, side, raw,
+                          offset=0)
+
+
+# ---- the latch's effects (``latch.Effect``), each on what the conversation knows ----
+
+def _stop_over(k: Knowledge) -> None:
+    k.under_stop, k.stop_cleared = k.latched, Fact(None, KNOWN)
+
+
+def _stop_over_reset(k: Knowledge) -> None:
+    k.stop_cleared, k.under_stop = k.latched, Fact(None, KNOWN)
+
+
+def _clear_under_stop(k: Knowledge) -> None:
+    k.stop_cleared, k.under_stop = k.under_stop, Fact(None, KNOWN)  # vendor §6
+
+
+def _new_alarm(k: Knowledge) -> None:
+    k.stop_cleared = _NOT_KNOWN
+
+
+def _forget_stop(k: Knowledge) -> None:
+    k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
+
+
+def _forget_cleared(k: Knowledge) -> None:
+    if k.stop_cleared.value is not None:
+        k.stop_cleared = _NOT_KNOWN
+
+
+def _cleared(k: Knowledge) -> None:
+    k.latched = Fact(None, KNOWN)
+    k.under_stop, k.stop_cleared = _NOT_KNOWN, _NOT_KNOWN
+
+
+def _released(k: Knowledge) -> None:
+    _cleared(k)
+    k.homed, k.position = _NOT_KNOWN, _NOT_KNOWN  # what the axis does after the release: item 3
+
+
+def _release(k: Knowledge) -> None:
+    k.latched = k.under_stop if k.under_stop.value is not None else Fact(None, KNOWN)
+    k.under_stop = _NOT_KNOWN
+
+
+_LATCH_EFFECTS: Final[dict[Effect, Callable[[Knowledge], None]]] = {
+    Effect.KEEP: lambda k: None,
+    Effect.STOP_OVER: _stop_over,
+    Effect.STOP_OVER_RESET: _stop_over_reset,
+    Effect.CLEAR_UNDER_STOP: _clear_under_stop,
+    Effect.NEW_ALARM: _new_alarm,
+    Effect.FORGET_STOP: _forget_stop,
+    Effect.FORGET_CLEARED: _forget_cleared,
+    Effect.CLEARED: _cleared,
+    Effect.CLEARED_RELEASED: _released,
+    Effect.RELEASED: _released,
+    Effect.RELEASE: _release,
 }
+assert set(_LATCH_EFFECTS) == set(Effect), "every effect is applied"
+# ``latch.LATCH`` with each effect's function (one look-up an event)
+_LATCH_CELLS: Final = {key: (cell.rule, _LATCH_EFFECTS[cell.effect]) for key, cell in LATCH.items()}
+
+
+# ---- what a failed exchange forgets (the ``forget`` column) ----
+
+def _forgets_nothing(k: Knowledge, c: Frame, sent: bool) -> None:
+    """A read: it changes nothing."""
+
+
+def _forget_point(k: Knowledge, c: Frame, sent: bool) -> None:
+    """0WP, 0WC: the point written or stored is unknown."""
+    k.points.pop(c.n, None)  # type: ignore[attr-defined]
+
+
+def _forget_outputs(k: Knowledge, c: Frame, sent: bool) -> None:
+    """0WS: the OUT ports are unknown."""
+    k.outputs = _NOT_KNOWN
+
+
+def _forget_move(k: Knowledge, c: Frame, sent: bool) -> None:
+    """0MP, 0MV: the axis may be anywhere, homed or not (unless known homed); after 0MP N the OUT ports
+    are unknown too (silent item 8)."""
+    k.position = _NOT_KNOWN
+    if k.homed.value is not True:
+        k.homed = _NOT_KNOWN
+    if isinstance(c, MovePoint) and c.n:
+        k.outputs = _NOT_KNOWN
+
+
+def _forget_mode(k: Knowledge, c: Frame, sent: bool) -> None:
+    """0CM: the mode is unknown."""
+    k.mode = _NOT_KNOWN
+
+
+def _forget_latch(k: Knowledge, c: Frame, sent: bool) -> None:
+    """0%C sent as a command (not discarded during a move): the latch is unknown."""
+    if sent:
+        k.latched = _NOT_KNOWN
+
+
+class HeaderRules(NamedTuple):
+    """One row a command header: what a clean exchange teaches (``learn``, a method of ``Conversation``
+    taking the command, the answer and the violations found; None: nothing but the mode) and what a
+    failed one forgets (``forget``: the knowledge, the command, whether it was sent as a command)."""
+
+    learn: Callable[..., None] | None
+    forget: Callable[[Knowledge, Frame, bool], None]
+
+
+# one row a command header of spec.FRAME_SPECS (a test checks every header has its row)
+HEADER_RULES: Final[dict[str, HeaderRules]] = {
+    ReadPoint.HEADER: HeaderRules(Conversation._on_read_point, _forgets_nothing),
+    WritePoint.HEADER: HeaderRules(Conversation._on_write_point, _forget_point),
+    ReadCurrent.HEADER: HeaderRules(Conversation._on_read_current, _forgets_nothing),
+    StoreCurrent.HEADER: HeaderRules(Conversation._on_store_current, _forget_point),
+    MovePoint.HEADER: HeaderRules(Conversation._on_move_point, _forget_move),
+    MoveDirect.HEADER: HeaderRules(Conversation._on_move_direct, _forget_move),
+    ReadOutputs.HEADER: HeaderRules(Conversation._on_read_outputs, _forgets_nothing),
+    WriteOutputs.HEADER: HeaderRules(Conversation._on_write_outputs, _forget_outputs),
+    ReadVersion.HEADER: HeaderRules(Conversation._on_read_version, _forgets_nothing),
+    SwitchMode.HEADER: HeaderRules(Conversation._on_switch_mode, _forget_mode),
+    AlarmReset.HEADER: HeaderRules(None, _forget_latch),  # the latch: ``latch.LATCH``
+}
+assert set(HEADER_RULES) == {fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND}, \
+    "every command header has its row"
 
 
 def point_of(answer: Frame) -> PointData | None:
@@ -1108,5 +1177,5 @@ def point_of(answer: Frame) -> PointData | None:
     return None
 
 
-__all__ = ["Conversation", "Fact", "Knowledge", "PointData", "Verdict", "header_of", "side_of",
-           "KNOWN", "LEARNT", "UNKNOWN"]
+__all__ = ["HEADER_RULES", "Conversation", "Fact", "HeaderRules", "Knowledge", "PointData", "Verdict",
+           "header_of", "side_of", "KNOWN", "LEARNT", "UNKNOWN"]

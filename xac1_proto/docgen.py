@@ -3,7 +3,8 @@
 How this works: docs/protocol.md holds marker comments ``<!-- generated: NAME -->`` ...
 ``<!-- end generated -->``; ``update(text)`` replaces what lies between each pair with ``TABLES[NAME]()``
 rendered from the spec tables (``FRAME_SPECS`` for "Frames", ``ALARMS`` for "Alarms",
-``rules.RULE_ROWS`` for "Violation codes"). Everything outside the markers is hand-written and kept.
+``rules.RULE_ROWS`` for "Violation codes", ``latch.LATCH`` for the latch's state machine). Everything
+outside the markers is hand-written and kept.
 ``python -m xac1_proto.docgen --write`` rewrites the page in place; ``--check`` exits 1 when it is out of
 date (a test runs the same comparison).
 """
@@ -17,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Final
 
-from . import rules, spec
+from . import latch, rules, spec
 
 DEFAULT_PATH: Final = Path(__file__).resolve().parent.parent / "docs" / "protocol.md"
 END: Final = "<!-- end generated -->"
@@ -82,10 +83,34 @@ def violations_table() -> str:
     return "\n".join(rows)
 
 
+def _latch_cell(cell: latch.Transition) -> str:
+    """A cell of the latch table: the rule broken (``-``: none) and, after an arrow, the effect when the
+    event does something."""
+    rule = f"`{cell.rule}`" if cell.rule else "-"
+    return rule if cell.effect is latch.Effect.KEEP else f"{rule} → {cell.effect.name}"
+
+
+def latch_table() -> str:
+    """The alarm latch's state machine (``latch.LATCH``): one row an event, one column a state, each cell
+    ``_latch_cell``; then what the states and effects are, and the storm run's table."""
+    states = list(latch.LatchState)
+    rows = ["| event | " + " | ".join(s.name for s in states) + " |", "|---|" + "---|" * len(states)]
+    for event in latch.LatchEvent:
+        cells = [_latch_cell(latch.LATCH[(state, event)]) for state in states]
+        rows.append(f"| {event.name}: {event.value} | " + " | ".join(cells) + " |")
+    effects = [f"{e.name}: {e.value}" for e in latch.Effect if e is not latch.Effect.KEEP]
+    storm = [f"{state.name} ({state.value}), {'the reset' if reset else 'another line'}: "
+             f"{f'`{rule}`' if rule else 'nothing'}" for (state, reset), rule in latch.HOST_DUTY.items()]
+    rows += ["", "States: " + "; ".join(f"{s.name}: {s.value}" for s in states) + ". Effects: "
+             + "; ".join(effects) + ".", "", "The storm run (`HOST_DUTY`): " + "; ".join(storm) + "."]
+    return "\n".join(rows)
+
+
 TABLES: Final[dict[str, Callable[[], str]]] = {
     "frames": frames_table,
     "alarms": alarms_table,
     "violations": violations_table,
+    "latch": latch_table,
 }
 
 

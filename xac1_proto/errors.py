@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 if TYPE_CHECKING:
     from .spec import Severity, ViolationCode
@@ -13,32 +13,74 @@ class XAC1Error(Exception):
     """Root of every error this package raises on purpose."""
 
 
-@dataclass(frozen=True)
-class Violation:
-    """One deviation from the protocol: a docs/protocol.md violation code, where, and what was wrong;
-    ``rule``: the rulebook row it breaks (``xac1_proto.rules``; default: the code's plain rule);
-    ``severity``: ``error`` or ``notice`` (default: the rule's, derived from its basis)."""
-
+class _ViolationFields(NamedTuple):
     code: ViolationCode
     offset: int | None
-    message: str
-    rule: str = ""
-    severity: Severity = "error"
+    rule: str
+    severity: Severity
+    text: str | None  # the sentence, when made at once (the decoder's); else made from the next two
+    sentence: Callable[..., str] | None
+    values: tuple[Any, ...]
 
-    def __init__(self, code: ViolationCode, offset: int | None, message: str, rule: str = "",
-                 severity: Severity | None = None) -> None:
+
+class Violation(_ViolationFields):
+    """One deviation from the protocol: a docs/protocol.md violation code, where, and what was wrong;
+    ``rule``: the rulebook row it breaks (``xac1_proto.rules``; default: the code's plain rule);
+    ``severity``: ``error`` or ``notice`` (default: the rule's, derived from its basis). ``message``, the
+    sentence, is made when read: the engine records a function and the few values it needs (``said``),
+    so a view that shows no sentence makes none (``xac1_proto.sentences``)."""
+
+    __slots__ = ()
+
+    def __new__(cls, code: ViolationCode, offset: int | None, message: str, rule: str = "",
+                severity: Severity | None = None) -> Violation:
         from .rules import severity as rule_severity  # (rules imports spec, which may import this module)
 
-        object.__setattr__(self, "code", code)
-        object.__setattr__(self, "offset", offset)
-        object.__setattr__(self, "message", message)
-        object.__setattr__(self, "rule", rule or code)
-        object.__setattr__(self, "severity", severity or rule_severity(rule or code))
+        return tuple.__new__(cls, (code, offset, rule or code, severity or rule_severity(rule or code),
+                                   message, None, ()))
+
+    @classmethod
+    def said(cls, code: ViolationCode, rule: str, severity: Severity, sentence: Callable[..., str],
+             *values: Any, offset: int | None = None) -> Violation:
+        """A violation whose sentence is ``sentence(*values)``, made only when ``message`` is read."""
+        return tuple.__new__(cls, (code, offset, rule, severity, None, sentence, values))
+
+    @property
+    def message(self) -> str:
+        """The sentence: what was wrong, the docs/protocol.md section and the code."""
+        text = self.text
+        if text is None:
+            assert self.sentence is not None
+            return self.sentence(*self.values)
+        return text
 
     @property
     def is_error(self) -> bool:
         """Does it break a rule (not a notice)?"""
         return self.severity == "error"
+
+    def graded(self, severity: Severity) -> Violation:
+        """The same violation with another severity (``--readings``)."""
+        return self._replace(severity=severity)
+
+    def _key(self) -> tuple[object, ...]:
+        return (self.code, self.offset, self.rule, self.severity, self.message)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Violation) and self._key() == other._key()
+
+    def __ne__(self, other: object) -> bool:
+        return not self == other
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (tuple.__new__, (Violation, tuple(self)))
+
+    def __repr__(self) -> str:
+        return (f"Violation(code={self.code!r}, offset={self.offset!r}, message={self.message!r}, "
+                f"rule={self.rule!r}, severity={self.severity!r})")
 
     def __str__(self) -> str:
         return self.message

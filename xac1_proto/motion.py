@@ -16,12 +16,36 @@ from . import spec
 
 @dataclass(frozen=True)
 class SpeedTable:
-    """Pulses per second for each speed number, and the homing move."""
+    """Pulses per second for each speed number, and the homing move. ``guessed``: the table is our guess
+    (``DEFAULT_SPEEDS``), not one a user gave: a move's answer window resting on it is a reading (the
+    conversation's rule ``late-move-answer``, docs/protocol.md silent items 15, 17)."""
 
     v_pps: float = 1000.0  # V n -> n * v_pps
     vel_pps: float = 500.0  # vel n -> n * vel_pps
     homing_pps: float = 10_000.0
     homing_accel: int = 2
+    guessed: bool = False
+
+    @classmethod
+    def parse(cls, text: str) -> SpeedTable:
+        """A table a user gives as ``V:VEL:HOMING[:ACCEL]``: pulses/s of speed number V 1, of direct speed
+        vel 1, of homing, and homing's acceleration number (1-3, default 2); ValueError naming what is
+        wrong."""
+        parts = text.split(":")
+        if not 3 <= len(parts) <= 4:
+            raise ValueError(f"expected V:VEL:HOMING[:ACCEL] (pulses/s of V 1, vel 1 and homing), "
+                             f"got {text!r}")
+        try:
+            v, vel, homing = (float(x) for x in parts[:3])
+            accel = int(parts[3]) if len(parts) == 4 else 2
+        except ValueError:
+            raise ValueError(f"expected numbers in V:VEL:HOMING[:ACCEL], got {text!r}") from None
+        if not all(math.isfinite(x) and x > 0 for x in (v, vel, homing)):
+            raise ValueError(f"speeds must be positive pulses per second, got {text!r}")
+        if accel not in spec.ACCEL_RAMP_S:
+            raise ValueError(f"the homing acceleration number is one of {sorted(spec.ACCEL_RAMP_S)}, "
+                             f"got {accel}")
+        return cls(v, vel, homing, accel)
 
     def point_speed(self, v: int) -> float:
         return max(v, 1) * self.v_pps
@@ -30,7 +54,7 @@ class SpeedTable:
         return max(vel, 1) * self.vel_pps
 
 
-DEFAULT_SPEEDS = SpeedTable()
+DEFAULT_SPEEDS = SpeedTable(guessed=True)  # silent item 15: the vendor's tables are missing
 
 
 def ramp_time(a: int) -> float:

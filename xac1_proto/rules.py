@@ -128,6 +128,11 @@ RULE_ROWS: Final[tuple[Rule, ...]] = (
     Rule("no-answer-junk", "no-answer", "a host line that is no command gets an alarm answer",
          _reading("silent item 1", "§5 gives an error code to an error in a command; a line that is no "
                   "command is not stated")),
+    Rule("late-move-answer", "no-answer", "a move's answer comes within twice its time estimated from the "
+         "guessed speed table (a table the user gives makes that window the plain no-answer rule)",
+         _reading("silent items 15, 17", "the vendor text gives no speed table and no time for a move's "
+                  "answer (§7 (5), (6): no communication until the answer): a window estimated from a "
+                  "guessed table is ours")),
     Rule("overlapping-command", "overlapping-command", "one command at a time: the next after the answer",
          _stated("§2, §7 (6)", f"{_ANSWER_DEF}; {_MOTION}")),
     Rule("command-during-motion", "command-during-motion", "no command while a move's answer is awaited",

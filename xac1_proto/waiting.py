@@ -1,0 +1,132 @@
+"""The host lines waiting for their answers, and the one place that decides whether a window has closed
+(docs/protocol.md "Framing": strict request/answer; silent item 17: the answer window).
+
+How this works: the engine (``conversation``) queues each host line it owes an answer to as a
+``WaitingLine`` with its ``deadline`` (its last byte + its answer window; None without time). ``Waiting``
+holds them in order and keeps the earliest deadline at hand (``due``), so asking whether time passing
+closes a window is one comparison while nothing can close (the sniffer asks before every chunk).
+``closed(now, since)`` is the only judgement of a closed window: a line whose deadline is before ``now``
+is closed, unless an answer began at ``since`` within the head's window (an answer that starts in time
+is in time); ``open_at(line, t)`` is its inverse for one line. No clock: times come in.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Final
+
+from . import spec
+from .frames import Frame
+
+COMMAND: Final = "command"  # a well-formed command: owed its answer
+ERROR: Final = "error"  # a frame breaking the frame table, or a junk line: owed an alarm answer
+DISCARD: Final = "discard"  # sent during a move: discarded by the device (silent item 10)
+_NEVER: Final = float("inf")
+
+# well-formed commands that raise no alarm of their own (our reading of vendor §6 and §7): an alarm
+# answer to one sent without any deviation is a latched alarm, never a new one (one with a notice may be
+# refused: a device may take lower case for an error, silent item 2)
+RAISES_NO_ALARM: Final = frozenset({"0RV", "0RS", "0RC", "0WS", "0CM"})
+
+
+class WaitingLine:
+    """A host line waiting for its answer. ``kind``: ``COMMAND``, ``ERROR`` or ``DISCARD``;
+    ``overlapped``: sent while another line waited (the host's fault, not owed an answer); ``deadline``:
+    when its answer window closes (None without time); ``harmless``: a command of ``RAISES_NO_ALARM``
+    read with no deviation at all, not even a notice (a device may refuse a lower-case command with an
+    alarm of its own: silent item 2), and not discarded;
+    ``junk``: a host junk run ending in LF, no command (owed an alarm answer: our reading); ``guessed``: a
+    move whose window rests only on the guessed speed table (silent items 15, 17)."""
+
+    __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
+                 "harmless", "junk", "guessed", "owed", "is_reset")
+
+    def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
+                 waited_s: float, overlapped: bool = False, is_move: bool = False, plain: bool = False,
+                 junk: bool = False, guessed: bool = False) -> None:
+        self.i = i
+        self.kind = kind
+        self.header = header
+        self.frame = frame
+        self.t_last = t_last
+        self.deadline = None if t_last is None else t_last + waited_s
+        self.waited_s = waited_s
+        self.overlapped = overlapped
+        self.is_move = is_move
+        self.harmless = plain and kind == COMMAND and header in RAISES_NO_ALARM
+        self.junk = junk
+        self.guessed = is_move and guessed
+        self.owed = kind != DISCARD and not overlapped  # does silence to it break a rule (no-answer)?
+        self.is_reset = kind == COMMAND and header == spec.RESET_HEADER  # a well-formed alarm reset (0%C)?
+
+    def name(self) -> str:
+        return f"{self.header or 'line'} #{self.i}"
+
+
+class Waiting(deque[WaitingLine]):
+    """The lines waiting for their answers, first sent first (a deque), with the earliest deadline at
+    hand (``due``). Lines enter by ``append`` and leave by ``popleft``, ``clear`` or ``keep``, which keep
+    ``due``."""
+
+    __slots__ = ("due",)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.due = _NEVER  # the earliest deadline among the lines (inf: none can close)
+
+    @property
+    def head(self) -> WaitingLine | None:
+        """The first line waiting, if any."""
+        return self[0] if self else None
+
+    def append(self, line: WaitingLine) -> None:
+        super().append(line)
+        if line.deadline is not None and line.deadline < self.due:
+            self.due = line.deadline
+
+    def popleft(self) -> WaitingLine:
+        line = super().popleft()
+        if not self:
+            self.due = _NEVER
+        elif line.deadline == self.due:
+            self._recount()
+        return line
+
+    def clear(self) -> None:
+        super().clear()
+        self.due = _NEVER
+
+    def keep(self, lines: deque[WaitingLine]) -> None:
+        """Only ``lines`` (in order) wait now."""
+        super().clear()
+        self.extend(lines)
+        self._recount()
+
+    def reschedule(self, line: WaitingLine, deadline: float) -> None:
+        """``line``'s window now closes at ``deadline`` (a caller knows more: the move ended)."""
+        line.deadline = deadline
+        self._recount()
+
+    def _recount(self) -> None:
+        self.due = min((w.deadline for w in self if w.deadline is not None), default=_NEVER)
+
+    # ---- the windows ----
+
+    def open_at(self, line: WaitingLine, t: float | None) -> bool:
+        """Is ``line``'s window open at ``t`` (always, without time)?"""
+        return t is None or line.deadline is None or t <= line.deadline
+
+    def closed(self, now: float, since: float | None) -> list[WaitingLine]:
+        """The lines whose window closed before ``now``, taken out of the queue in order. ``since``: an
+        answer began then and is still arriving; begun within the head's window, it closes nothing."""
+        if not self.due < now:
+            return []
+        head = self[0]
+        if since is not None and head.deadline is not None and since <= head.deadline:
+            return []
+        closed: list[WaitingLine] = []
+        kept: deque[WaitingLine] = deque()
+        for w in self:
+            (closed if w.deadline is not None and w.deadline < now else kept).append(w)
+        self.keep(kept)
+        return closed
