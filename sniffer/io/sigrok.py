@@ -100,7 +100,7 @@ def read(src: Source, host_is: str | None = None, samplerate: float | None = Non
 
 def _extra_lines(src: Source) -> Iterator[tuple[int, str]]:
     with src.reopen() as f:
-        yield from numbered_lines(f)
+        yield from numbered_lines(f, src.max_line)
 
 
 def _annotations(src: Source, lines: Iterator[tuple[int, str]], instances: set[str], only: str | None,
@@ -217,7 +217,7 @@ def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
     classes: set[str] = set()
     spans: list[int] = []
     with src.reopen() as f:
-        for _number, line in islice(numbered_lines(f), _PRESCAN):
+        for _number, line in islice(numbered_lines(f, src.max_line), _PRESCAN):
             m = _LINE.fullmatch(line)
             if m:
                 instances.add(m.group(3))

@@ -19,9 +19,9 @@ direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``
 socat appending to the same log starts again at ``from=0``, which is accepted. A header whose time is
 more than a second before the one before it is reported too (``timeline``: the clock was set back).
 
-One parser: the file is read in blocks of ``BLOCK`` characters (``_Blocks``: never the whole file),
+One parser: the file is read in blocks of ``block`` characters (``_Blocks``: never the whole file),
 handed on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
-(numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number), every
+(numbered, line end stripped; a line longer than the source's ``max_line`` in pieces of the same number), every
 character accounted for: the lines that make up almost every dump, a header as socat writes it and the
 line after it when that starts with a space (its hex row), as one match with their fields; any other
 line as itself. The transfer builder (``_Transfers``: one chunk per transfer, handed on in bounded
@@ -50,7 +50,6 @@ from typing import Final
 
 from xac1_proto.chunk import Chunk, Direction
 
-from . import base as _base
 from .base import MAX_TIME, MIN_TIME, Clock, Report, Sides, Source, shown, wallclock
 from .timeline import TOLERANCE_S, Timeline
 
@@ -80,8 +79,8 @@ _TEXT: Final = "text"  # a transfer's mode: -v text (None: not known yet; "hex":
 _HEXMODE: Final = "hex"
 _Stepped = tuple[Chunk | None, str | None]  # what ``step`` makes of a line: a chunk, a rest to read
 
-BLOCK = 1 << 14  # characters read at once: a region, and the list findall makes of it, stay small (a
-# test makes it tiny so that block ends fall everywhere)
+BLOCK: Final = 1 << 14  # characters read at once by default: a region, and the list findall makes of it,
+# stay small
 
 
 def sniff(head: list[str]) -> int:
@@ -149,29 +148,34 @@ def _block_matcher(max_line: int, crlf: bool) -> re.Pattern[str]:
                       + rf"|([^\n]{{0,{max_line - 1}}})\n|([^\n]{{{max_line}}})")
 
 
-def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    return _Transfers(src, Sides(FORMAT, host_is, (">", "<"))).read(_Blocks(src))
+def read(src: Source, host_is: str | None = None, *, block: int = BLOCK) -> Iterator[Chunk]:
+    """The chunks of a socat dump, read ``block`` characters at a time (at least one): any block size gives
+    the same chunks and problems."""
+    if block < 1:
+        raise ValueError(f"block must be at least 1 character, not {block}")
+    return _Transfers(src, Sides(FORMAT, host_is, (">", "<"))).read(_Blocks(src, block))
 
 
 class _Blocks:
-    """The file read in blocks of ``BLOCK`` characters (latin-1), handed on as regions of whole lines
+    """The file read in blocks of ``block`` characters (latin-1), handed on as regions of whole lines
     (never the whole file): ``regions`` gives ``(text, start, end)``, ``text[start:end]`` ending with a
-    line end, or made of ``MAX_LINE`` pieces of a line longer than that. What follows the last line end
+    line end, or made of ``max_line`` pieces of a line longer than that. What follows the last line end
     of the file is ``tail``, once the regions are all read."""
 
-    def __init__(self, src: Source) -> None:
+    def __init__(self, src: Source, block: int) -> None:
         self.src = src
+        self.block = block
         self.tail = ""
 
     def regions(self) -> Iterator[tuple[str, int, int]]:
-        read, max_line = self.src.read, _base.MAX_LINE
+        read, max_line, block = self.src.read, self.src.max_line, self.block
         buf, pos = "", 0
         while True:
             cut = buf.rfind("\n", pos) + 1
             if cut <= pos:  # no whole line left: pieces of a long one, or another block
                 if len(buf) - pos >= max_line:
                     cut = pos + (len(buf) - pos) // max_line * max_line
-                elif data := read(BLOCK):
+                elif data := read(block):
                     buf, pos = buf[pos:] + data.decode("latin-1"), 0
                     continue
                 else:
@@ -342,7 +346,7 @@ class _Transfers:
         header and its hex row as one (``_block_matcher``), and each is read by its kind: a header, a
         further hex row, the ``--`` after a transfer held whole, anything else (for ``step``: see the
         module docstring); then the file's last line if it has no line end."""
-        findall = _block_matcher(_base.MAX_LINE, b"\r\n" in self.src.head()).findall  # (nothing read yet)
+        findall = _block_matcher(self.src.max_line, b"\r\n" in self.src.head()).findall  # (nothing read yet)
         header, further_row, for_step = self._header_match, self._further_row, self._line_for_step
         queued = self.queued
         for region in blocks.regions():
@@ -420,7 +424,7 @@ class _Transfers:
         return cur.spill() if len(cur.data) >= _SPILL else None
 
     def _line_for_step(self, line: str, piece: str) -> None:
-        """Any other line, or a piece of a line longer than ``MAX_LINE``: queued for ``step``."""
+        """Any other line, or a piece of a line longer than ``max_line``: queued for ``step``."""
         self._next_line(piece)
         if self.held is not None:
             self._hold()
