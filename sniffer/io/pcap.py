@@ -16,15 +16,16 @@ at the next plausible record or block (a bounded look-ahead), so the packets aft
 Every byte is line data in a chunk, structure of a record read, or counted unread by a problem.
 
 One walk (``_pcap_chunks``, ``_pcapng_chunks``): a loop over the block of the file read so far
-(``_Buffer.window``: one block of ``block`` (``BLOCK``) or more bytes, no copy) with ``struct.unpack_from`` at an
-offset and locals. It takes, in a row, the records (pcap) or enhanced packet blocks (pcapng) that are whole
-in the block and carry the common packet (a TX/RX event, sane microseconds, a time in range and not
-running backwards), and stops at the first other one; the loop hands its locals to ``_Walk`` (``settle``)
-and ``_pcap_stop`` / ``_pcapng_stop`` say what is there: a record or block not yet all read (the loop
-reads on, ``_Buffer.peek``), else ``_pcap_record`` / ``_pcapng_block`` read it: any other packet (by
-``_chunk``, which says what is wrong with it), any other block (SHB, IDB, SPB, other types), and damage
-(an implausible or unrepeated length, the file ending inside), which they report and resynchronise
-after. Memory: one block of the file plus at most one record's (or one ``_SCAN`` look-ahead's) bytes.
+(``_Buffer.window``: one block of ``block`` (``BLOCK``) or more bytes, no copy) with
+``struct.unpack_from`` at an offset and locals. It takes, in a row, the records (pcap) or enhanced packet
+blocks (pcapng) that are whole in the block and carry the common packet (a TX/RX event, sane microseconds,
+a time in range and not running backwards), and stops at the first other one; the loop hands its locals to
+``_Walk`` (``settle``) and ``_pcap_stop`` / ``_pcapng_stop`` say what is there: a record or block not yet
+all read (the loop reads on, ``_Buffer.peek``), else ``_pcap_record`` / ``_pcapng_block`` read it: any
+other packet (by ``_chunk``, which says what is wrong with it), any other block (SHB, IDB, SPB, other
+types), and damage (an implausible or unrepeated length, the file ending inside), which they report and
+resynchronise after. Memory: one block of the file plus at most one record's (or one ``look_ahead``'s)
+bytes.
 
 Host side default: ``TX`` (the capturing port sent the commands). The writer (``PcapngWriter``) writes
 host bytes as TX and device bytes as RX, so its files read back with the default.
@@ -65,8 +66,8 @@ _BLOCK_EPB, _BLOCK_SPB, _BLOCK_IDB = 6, 3, 1
 # interface statistics, EPB, IRIG timestamp, ARINC 429, systemd journal export, decryption secrets, custom
 _BLOCK_TYPES: Final = frozenset({*range(1, 11), 0x00000BAD, 0x40000BAD})
 _MAX_RECORD: Final = 1 << 20
-_RESYNC_MAX: Final = 1 << 16  # longest record or block taken as a resynchronisation point
-_SCAN: Final = 1 << 18  # look-ahead searched for the next record after damage
+LOOK_AHEAD: Final = 1 << 18  # bytes searched at once by default for the next record after damage (a
+# quarter of them: the longest record or block taken as a resynchronisation point)
 BLOCK: Final = 1 << 17  # bytes read at once (at least) by default: the walk's block
 
 # the walk's fields, by byte order
@@ -85,12 +86,15 @@ def sniff_bytes(first: bytes) -> int:
     return 99 if first[:4] in _PCAP_MAGIC or first[:4] == _SHB else 0
 
 
-def read(src: Source, host_is: str | None = None, *, block: int = BLOCK) -> Iterator[Chunk]:
+def read(src: Source, host_is: str | None = None, *, block: int = BLOCK,
+         look_ahead: int = LOOK_AHEAD) -> Iterator[Chunk]:
     """The chunks of a pcap or pcapng file, read ``block`` bytes at a time (at least one): any block size
-    gives the same chunks and problems."""
-    if block < 1:
-        raise ValueError(f"block must be at least 1 byte, not {block}")
-    buf = _Buffer(src, block)
+    gives the same chunks and problems. After damage the next plausible record is searched for
+    ``look_ahead`` bytes at a time (at least 1024; records or blocks of up to a quarter of it are taken
+    as that)."""
+    if block < 1 or look_ahead < 1024:
+        raise ValueError(f"block must be at least 1 byte and look_ahead 1024, not {block} and {look_ahead}")
+    buf = _Buffer(src, block, look_ahead)
     magic = buf.peek(4)
     if magic not in _PCAP_MAGIC and magic != _SHB:
         raise FormatError(f"{src.name}: not a pcap or pcapng file (first bytes {magic.hex(' ')})")
@@ -109,9 +113,11 @@ class _Buffer:
     rest); ``window`` gives the block itself to the walk's loop. Memory: a read block plus the largest
     peek (about one record)."""
 
-    def __init__(self, src: Source, block: int) -> None:
+    def __init__(self, src: Source, block: int, look_ahead: int) -> None:
         self.src = src
         self.block = block  # bytes read at once (at least)
+        self.look_ahead = look_ahead  # bytes searched at once after damage
+        self.longest = look_ahead // 4  # the longest record or block taken as a resynchronisation point
         self._block = b""
         self._pos = 0
         self.offset = 0
@@ -302,7 +308,7 @@ def _pcap_record(w: _Walk) -> tuple[bool, Chunk | None]:
                                   f"missing of 16", nbytes=len(rec))
         return False, None
     sec, frac, incl, orig = struct.unpack(w.order + "IIII", rec)
-    resync = partial(_pcap_resync, order=w.order, ticks=w.ticks, last_sec=w.last_sec)
+    resync = partial(_pcap_resync, order=w.order, ticks=w.ticks, last_sec=w.last_sec, longest=buf.longest)
     why = None
     if incl > _MAX_RECORD:
         why = f"corrupt length {incl} (expected at most {_MAX_RECORD})"
@@ -312,7 +318,7 @@ def _pcap_record(w: _Walk) -> tuple[bool, Chunk | None]:
         whole = buf.peek(16 + incl)
         if len(whole) < 16 + incl:
             left = len(whole) - 16
-            if resync(buf.offset, off + 1, buf.peek(_SCAN)) is None:
+            if resync(buf.offset, off + 1, buf.peek(buf.look_ahead)) is None:
                 src.report.problem(where, f"corrupt length {incl}: the record runs {incl - left} byte(s) "
                                           f"past the end of the file ({left} left; or the file was cut "
                                           f"short inside it)", nbytes=len(whole))
@@ -335,7 +341,7 @@ def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
     window)`` finds one in a look-ahead window; the window slides on, so memory stays bounded."""
     off = buf.offset
     while True:
-        window = buf.peek(_SCAN)
+        window = buf.peek(buf.look_ahead)
         found = scan(buf.offset, start, window)
         if found is not None:
             lost = found - off
@@ -343,24 +349,24 @@ def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
                                nbytes=lost)
             buf.skip(found - buf.offset)
             return True
-        if len(window) < _SCAN:  # the end of the file is in the window
+        if len(window) < buf.look_ahead:  # the end of the file is in the window
             buf.skip(len(window))
             lost = buf.offset - off
             src.report.problem(where, f"{why}; nothing plausible follows: the rest of the file ({lost} "
                                       f"byte(s)) is skipped", nbytes=lost)
             return False
-        buf.skip(len(window) - _RESYNC_MAX - 32)
+        buf.skip(len(window) - buf.longest - 32)
         start = buf.offset
 
 
 def _pcap_resync(base: int, start: int, window: bytes, *, order: str, ticks: int,
-                 last_sec: int | None) -> int | None:
+                 last_sec: int | None, longest: int) -> int | None:
     """The file offset of the next plausible pcap record at or after ``start`` in ``window`` (which
-    starts at file offset ``base``): a sane fraction and length, a time near the last good one, and
-    either the end of the window or another sane record header right after it."""
+    starts at file offset ``base``): a sane fraction and length (at most ``longest``), a time near the last
+    good one, and either the end of the window or another sane record header right after it."""
     for p in range(start - base, len(window) - 15):
         sec, frac, incl, orig = struct.unpack_from(order + "IIII", window, p)
-        if frac >= ticks or incl > _RESYNC_MAX or incl > orig or incl < RTAC_HEADER.size:
+        if frac >= ticks or incl > longest or incl > orig or incl < RTAC_HEADER.size:
             continue
         if last_sec is not None and abs(sec - last_sec) > 86400:
             continue
@@ -368,14 +374,14 @@ def _pcap_resync(base: int, start: int, window: bytes, *, order: str, ticks: int
         if nxt > len(window):
             continue
         if nxt == len(window) or (nxt + 16 <= len(window) and
-                                  _sane_pcap_header(window[nxt:nxt + 16], order, ticks, sec)):
+                                  _sane_pcap_header(window[nxt:nxt + 16], order, ticks, sec, longest)):
             return base + p
     return None
 
 
-def _sane_pcap_header(rec: bytes, order: str, ticks: int, near: int) -> bool:
+def _sane_pcap_header(rec: bytes, order: str, ticks: int, near: int, longest: int) -> bool:
     sec, frac, incl, orig = struct.unpack(order + "IIII", rec)
-    return frac < ticks and incl <= min(orig, _RESYNC_MAX) and abs(sec - near) <= 86400
+    return frac < ticks and incl <= min(orig, longest) and abs(sec - near) <= 86400
 
 
 def _pcapng_chunks(w: _Walk) -> Iterator[Chunk]:
@@ -463,7 +469,8 @@ def _pcapng_block(w: _Walk) -> tuple[bool, Chunk | None]:
     if why is None:
         block = buf.peek(total)
         if len(block) < total:
-            if _pcapng_resync(buf.offset, off + 4, buf.peek(_SCAN), order=w.order) is None:
+            if _pcapng_resync(buf.offset, off + 4, buf.peek(buf.look_ahead), order=w.order,
+                              longest=buf.longest) is None:
                 src.report.problem(where, f"the file ends inside block {w.n}: its length {total} runs "
                                           f"{total - len(block)} byte(s) past the end (the file was "
                                           f"cut short, or the length is corrupt)", nbytes=len(block))
@@ -476,8 +483,8 @@ def _pcapng_block(w: _Walk) -> tuple[bool, Chunk | None]:
                    f"damaged block")
     if why is not None:
         w.n -= 1
-        return _skip_damage(src, buf, where, why, off + 4, partial(_pcapng_resync, order=w.order),
-                            "block"), None
+        return _skip_damage(src, buf, where, why, off + 4,
+                            partial(_pcapng_resync, order=w.order, longest=buf.longest), "block"), None
     buf.skip(total)
     if is_shb:
         w.interfaces, w.units = [], []
@@ -495,11 +502,11 @@ def _bad_block_length(total: int, least: int) -> str | None:
     return None
 
 
-def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int | None:
+def _pcapng_resync(base: int, start: int, window: bytes, *, order: str, longest: int) -> int | None:
     """The file offset of the next whole pcapng block at or after ``start`` in ``window`` (which starts
     at file offset ``base``; blocks are 4-byte aligned): a block type the format defines and a plausible
-    length repeated at its end (an EPB's captured and original lengths of 12 would otherwise read as a
-    12-byte block inside it)."""
+    length (at most ``longest``) repeated at its end (an EPB's captured and original lengths of 12 would
+    otherwise read as a 12-byte block inside it)."""
     first = start - base
     first += -first % 4
     for p in range(first, len(window) - 11, 4):
@@ -509,7 +516,7 @@ def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int |
             continue
         for o in orders:
             total = struct.unpack_from(o + "I", window, p + 4)[0]
-            if total > _RESYNC_MAX or _bad_block_length(total, 28 if is_shb else 12) is not None:
+            if total > longest or _bad_block_length(total, 28 if is_shb else 12) is not None:
                 continue
             if p + total <= len(window) and struct.unpack_from(o + "I", window, p + total - 4)[0] == total:
                 return base + p
