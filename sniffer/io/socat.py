@@ -46,6 +46,7 @@ Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 from __future__ import annotations
 
 import functools
+import math
 import re
 from collections.abc import Generator, Iterator
 from typing import Final
@@ -235,16 +236,18 @@ class _HeaderClock:
     """The times of a log's headers, as ``wallclock`` computes them: a header's whole second plus its
     fraction, the 9-digit quirk read (``_Clock``). The start of the last header's minute is remembered
     (seconds in a minute are linear: time zones change their offset on whole minutes), and of its
-    second, so a header of the same second or minute costs one addition. A time that cannot be one, or
-    that runs backwards, is reported (``times``, ``timeline``: their ``last`` is the last good time)."""
+    second, so a header of the same second or minute costs one addition. A time that cannot be one is
+    reported (``times``) and the last good time (``last``) kept; one that runs backwards is reported
+    (``timeline``)."""
 
-    __slots__ = ("where", "quirk", "times", "timeline", "minute", "base", "second", "second_base")
+    __slots__ = ("where", "quirk", "times", "timeline", "last", "minute", "base", "second", "second_base")
 
     def __init__(self, src: Source) -> None:
         self.where = src.where
         self.quirk = _Clock()
         self.times = Clock(src.report)
         self.timeline = Timeline(src.report)
+        self.last = -math.inf  # the last good time (-inf: none yet)
         self.minute = ""  # the last header's ``YYYY/MM/DD HH:MM`` (when all its seconds are in range)
         self.base = 0.0  # and the start of that minute
         self.second = ""  # the last header's ``YYYY/MM/DD HH:MM:SS`` that ``at`` read, and its start
@@ -263,17 +266,10 @@ class _HeaderClock:
                 return self.time(number, second[:10], second[11:], frac[1:])
             self.second, self.second_base = second, self.base + _SECONDS[second[17:]]
         t = self.second_base + float(frac if len(frac) == 7 else "." + self.quirk.fraction(frac[1:]))
-        self._follow(number, t)
+        if t + TOLERANCE_S < self.last:
+            self._backwards(number, t)
+        self.last = t
         return t
-
-    def _follow(self, number: int, t: float) -> None:
-        """A good time read: the last one now (a step back reported)."""
-        self.times.last = t
-        timeline = self.timeline
-        if t + TOLERANCE_S < timeline.last:
-            timeline.check(t, self.where(number))
-        else:
-            timeline.last = t
 
     def time(self, number: int, date: str, clock: str, frac: str | None) -> float | None:
         """The time of any header (``clock``: ``HH:MM:SS``): a time that cannot be one is reported and the
@@ -282,14 +278,23 @@ class _HeaderClock:
         ss = int(clock[6:])
         base = self.base if f"{date} {clock[:5]}" == self.minute and ss < 60 else \
             self._minute_start(number, date, clock, frac)
+        previous = None if self.last == -math.inf else self.last
         if base is None:
-            return self.times.last
+            return previous
         digits = frac[:12]
         t = base + ss + (int(digits) / _POWERS[len(digits)] if digits else 0.0)
         if not MIN_TIME <= t < MAX_TIME:
+            self.times.last = previous
             return self.times.check(t, self.where(number))  # said; the previous time
-        self._follow(number, t)
+        if t + TOLERANCE_S < self.last:
+            self._backwards(number, t)
+        self.last = t
         return t
+
+    def _backwards(self, number: int, t: float) -> None:
+        """A time more than ``TOLERANCE_S`` before the last good one: reported by the timeline."""
+        self.timeline.last = self.last
+        self.timeline.check(t, self.where(number))
 
     def _minute_start(self, number: int, date: str, clock: str, frac: str) -> float | None:
         """The start of a header's minute, remembered when all its seconds are in range; None for a time
@@ -391,7 +396,14 @@ class _Transfers:
         chunk = self.held
         if chunk is None:
             chunk = self.finish(number)  # (None when no transfer is being read)
-        length = self._length(number, mark, length_s, from_s, to_s)
+        # the counters compared as text with the two numbers expected (``from=`` where the side's last
+        # transfer ended, ``to=`` where ``length=`` ends), read and checked in full when they differ
+        length = self.sizes.get(length_s)  # (a length remembered is at most 16 MiB)
+        first = self.following.get(mark, -1)
+        if length is not None and from_s == str(first) and to_s == str(first + length - 1):
+            self.following[mark] = first + length
+        else:
+            length = self._counters(number, mark, self._size(length_s), int(from_s), int(to_s))
         t = clock.at(number, second, frac)
         d = self.dirs[mark]
         if not row:
@@ -426,19 +438,15 @@ class _Transfers:
         return cur.spill() if len(cur.data) >= _SPILL else None
 
     def _line_for_step(self, line: str, piece: str) -> None:
-        """Any other line, or a piece of a line longer than ``max_line``: queued for ``step``."""
-        self._next_line(piece)
-        if self.held is not None:
-            self._hold()
-        self.queued.append((self.number, piece.rstrip("\r") if piece else line.rstrip("\r")))
-
-    def _next_line(self, piece: str) -> None:
-        """Count the line ``findall`` gives (a piece of a long line keeps the number of the piece before),
-        and whether it goes on: then the file so far ends inside it (``unterminated``)."""
+        """Any other line, or a piece of a line longer than ``max_line`` (numbered as the piece before it
+        when that went on; then the file so far ends inside it: ``unterminated``): queued for ``step``."""
         if not self.continued:
             self.number += 1
         self.continued = piece != ""
         self.src.unterminated = self.number if self.continued else None
+        if self.held is not None:
+            self._hold()
+        self.queued.append((self.number, piece.rstrip("\r") if piece else line.rstrip("\r")))
 
     def _step_queued(self) -> Iterator[Chunk]:
         """The lines queued, read by ``step``; then whether ``read`` reads the next lines itself."""
@@ -474,17 +482,6 @@ class _Transfers:
         cur.mode = _HEXMODE
         cur.data += held.data
 
-    def _length(self, number: int, mark: str, length_s: str, from_s: str, to_s: str) -> int:
-        """A header's ``length=``, its counters checked: compared as text with the two numbers expected
-        (``from=`` where the side's last transfer ended, ``to=`` where ``length=`` ends), read and checked
-        in full (``_counters``) when they differ (the first transfer of a side, a restart, damage)."""
-        length = self.sizes.get(length_s)  # (a length remembered is at most 16 MiB)
-        first = self.following.get(mark, -1)
-        if length is not None and from_s == str(first) and to_s == str(first + length - 1):
-            self.following[mark] = first + length
-            return length
-        return self._counters(number, mark, self._size(length_s), int(from_s), int(to_s))
-
     def _size(self, text: str) -> int:
         """``length=``'s number (remembered when it is plausible, at most 16 MiB: a conversation's transfers
         have few lengths)."""
@@ -496,8 +493,9 @@ class _Transfers:
         return size
 
     def _counters(self, number: int, mark: str, length: int, start: int, end: int) -> int:
-        """A header's counters and length checked (when ``_length`` found them other than it expected: the
-        first transfer of a side, a restart, a leading zero, damage); the length read."""
+        """A header's counters and length checked (by ``_header``, or by ``_header_match`` when it found them
+        other than it expected: the first transfer of a side, a restart, a leading zero, damage); the length
+        read."""
         following = self.following
         if end - start + 1 != length or length > _MAX_TRANSFER or \
                 mark in following and start != following[mark] and start != 0:
@@ -649,7 +647,7 @@ class _Transfers:
     def _header(self, number: int, m: re.Match[str]) -> None:
         """A transfer's header: its counters, length and time checked; it becomes the transfer read."""
         mark, date, clock, frac, length_s, start_s, end_s, tail = m.groups()
-        length = self._length(number, mark, length_s, start_s, end_s)
+        length = self._counters(number, mark, int(length_s), int(start_s), int(end_s))
         t = None if date is None else self.clock.time(number, date, clock, frac)
         self.cur = _Transfer(number, self.dirs[mark], t, length)
         if tail and not tail.isspace():
