@@ -355,47 +355,46 @@ class _Transfers:
         module docstring); then the file's last line if it has no line end."""
         findall = _block_matcher(self.src.max_line, b"\r\n" in self.src.head()).findall  # (nothing read yet)
         header, further_row, for_step = self._header_match, self._further_row, self._line_for_step
+        plain = self.clock.plain
         queued = self.queued
+        chunk: Chunk | None
         for region in blocks.regions():
             for match in findall(*region):
                 if match[0]:
-                    chunk = header(match)
+                    if self.here and plain(match[1]):
+                        if (chunk := self._end_transfer()) is not None:
+                            yield chunk  # (before anything of the header is said)
+                        header(match)
+                    else:
+                        self._header_for_step(match)
+                else:
+                    line, piece = match[7], match[8]
+                    if line[:1] == " " and self.here and (self.held or self.cur) is not None:
+                        chunk = further_row(line.rstrip("\r"))
+                    elif line[:2] == "--":
+                        chunk = self._dashes(line, piece)
+                    else:
+                        chunk = for_step(line, piece)
                     if chunk is not None:
                         yield chunk
-                    if queued:
-                        yield from self._step_queued()
-                    continue
-                line, piece = match[7], match[8]
-                if line[:1] == " " and self.here and (self.held or self.cur) is not None:
-                    chunk = further_row(line.rstrip("\r"))
-                elif line[:2] == "--" and self.held is not None and line.strip() == "--":
-                    self.number += 1  # the end of a -x -v transfer held whole (as step's END would end it)
-                    chunk, self.held = self.held, None
-                else:
-                    chunk = for_step(line, piece)
-                if chunk is not None:
-                    yield chunk
                 if queued:
                     yield from self._step_queued()
         yield from self._last_line(blocks.tail)
 
-    def _header_match(self, match: tuple[str, ...]) -> Chunk | None:
-        """A header as socat writes it, with its first hex row when one follows: the transfer before ends
-        (its chunk returned), this one begins; one whose row holds it whole is held (no ``_Transfer``).
-        A header while -v text is read or a line's pieces go on, or of a date ``plain`` refuses, goes to
-        ``step`` (queued) with its row."""
+    def _end_transfer(self) -> Chunk | None:
+        """The transfer before a header ``read`` reads itself ends (held whole, or being read: finished):
+        its chunk, if it has bytes."""
+        held = self.held
+        if held is None:
+            return self.finish(self.number + 1)
+        self.held = None
+        return held
+
+    def _header_match(self, match: tuple[str, ...]) -> None:
+        """A header as socat writes it, with its first hex row when one follows (the transfer before it
+        has ended): this transfer begins; one whose row holds it whole is held (no ``_Transfer``)."""
         mark, second, frac, length_s, from_s, to_s, row, _, _ = match
-        clock = self.clock
-        if not self.here or second != clock.second and not clock.plain(second):
-            self._line_for_step(f"{mark} {second}{frac}  length={length_s} from={from_s} to={to_s}", "")
-            if row:
-                self.number += 1
-                self.queued.append((self.number, row.rstrip("\r")))
-            return None
         number = self.number + 1
-        chunk = self.held
-        if chunk is None:
-            chunk = self.finish(number)  # (None when no transfer is being read)
         # the counters compared as text with the two numbers expected (``from=`` where the side's last
         # transfer ended, ``to=`` where ``length=`` ends), read and checked in full when they differ
         length = self.sizes.get(length_s)  # (a length remembered is at most 16 MiB)
@@ -404,23 +403,40 @@ class _Transfers:
             self.following[mark] = first + length
         else:
             length = self._counters(number, mark, self._size(length_s), int(from_s), int(to_s))
-        t = clock.at(number, second, frac)
+        t = self.clock.at(number, second, frac)
         d = self.dirs[mark]
         if not row:
-            self.number, self.held, self.cur = number, None, _Transfer(number, d, t, length)
-            return chunk
+            self.number, self.cur = number, _Transfer(number, d, t, length)
+            return
         self.number = number + 1
         data = self.known.get(row) or self._hex_row(row)
         if data and len(data) == length:
             self.held, self.held_line, self.hex_seen = Chunk(t, d, data), number, True
-            return chunk
-        self.held = None
+            return
         cur = self.cur = _Transfer(number, d, t, length)
         if data:
             cur.add_hex_row(row.rstrip("\r"), data)
         else:
             self.queued.append((number + 1, row.rstrip("\r")))  # no hex row: step reads it
+
+    def _dashes(self, line: str, piece: str) -> Chunk | None:
+        """A line starting with ``--``: the end of a -x -v transfer held whole (as step's END would end
+        it), else a line for ``step``."""
+        if self.held is None or line.strip() != "--":
+            self._line_for_step(line, piece)
+            return None
+        self.number += 1
+        chunk, self.held = self.held, None
         return chunk
+
+    def _header_for_step(self, match: tuple[str, ...]) -> None:
+        """A header while -v text is read or a line's pieces go on, or of a date ``plain`` refuses: queued
+        for ``step`` with its row."""
+        mark, second, frac, length_s, from_s, to_s, row, _, _ = match
+        self._line_for_step(f"{mark} {second}{frac}  length={length_s} from={from_s} to={to_s}", "")
+        if row:
+            self.number += 1
+            self.queued.append((self.number, row.rstrip("\r")))
 
     def _further_row(self, text: str) -> Chunk | None:
         """A line starting with a space while a transfer is read: a further hex row of it (a long
@@ -560,12 +576,14 @@ class _Transfers:
     # what ``step`` does with each kind of line: (a chunk to hand on or None, a rest of the line to read)
 
     def _on_header(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
-        """A transfer header: the transfer before ends, this one begins."""
-        chunk = self.finish(number)
+        """A transfer header: the transfer being read ends (handed on, and the header read again: nothing
+        of it is said before), else this one begins."""
+        if self.cur is not None:
+            return self.finish(number), text
         m = _HEADER_LINE.match(text)
         assert m is not None
         self._header(number, m)
-        return chunk, None
+        return None, None
 
     def _on_end(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
         """The ``--`` after a -x -v transfer: it ends."""
