@@ -361,8 +361,9 @@ class _Transfers:
         for region in blocks.regions():
             for match in findall(*region):
                 if match[0]:
-                    if self.here and plain(match[1]):
-                        if (chunk := self._end_transfer()) is not None:
+                    if self.here and plain(match[1]):  # the transfer before ends (held whole, or finished)
+                        chunk, self.held = self.held or self.finish(self.number + 1), None
+                        if chunk is not None:
                             yield chunk  # (before anything of the header is said)
                         header(match)
                     else:
@@ -380,15 +381,6 @@ class _Transfers:
                 if queued:
                     yield from self._step_queued()
         yield from self._last_line(blocks.tail)
-
-    def _end_transfer(self) -> Chunk | None:
-        """The transfer before a header ``read`` reads itself ends (held whole, or being read: finished):
-        its chunk, if it has bytes."""
-        held = self.held
-        if held is None:
-            return self.finish(self.number + 1)
-        self.held = None
-        return held
 
     def _header_match(self, match: tuple[str, ...]) -> None:
         """A header as socat writes it, with its first hex row when one follows (the transfer before it
