@@ -36,19 +36,23 @@ MAGIC = {magic: (order, unit) for magic, order, unit in zip(PCAP_MAGICS, "<><>",
                                                             strict=True)}  # byte order, time unit
 
 
+@dataclasses.dataclass
+class LoggedReport(Report):
+    """A report that also logs each problem, in order with the chunks, in ``events``."""
+
+    events: list[tuple[Any, ...]] = dataclasses.field(default_factory=list)
+
+    def problem(self, where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
+        self.events.append(("problem", where, message, nbytes, nlines))
+        super().problem(where, message, nbytes=nbytes, nlines=nlines)
+
+
 def outcome(path: Path, host_is: str | None = None, give_up_after: int | None = None, *,
             block: int = pcap_mod.BLOCK,
             look_ahead: int = pcap_mod.LOOK_AHEAD) -> tuple[list[tuple[Any, ...]], dict[str, Any], Any]:
     """Everything reading ``path`` does, in order (chunks and problems), the report, the exception."""
-    report = Report(give_up_after=give_up_after)
-    events: list[tuple[Any, ...]] = []
-    problem = report.problem
-
-    def logged(where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
-        events.append(("problem", where, message, nbytes, nlines))
-        problem(where, message, nbytes=nbytes, nlines=nlines)
-
-    report.problem = logged  # type: ignore[method-assign]
+    report = LoggedReport(give_up_after=give_up_after)
+    events = report.events
     error = None
     with Source(path, report) as src:
         try:
@@ -57,7 +61,7 @@ def outcome(path: Path, host_is: str | None = None, give_up_after: int | None = 
                 events.append(("chunk", type(c), c.t, c.dir, c.data, c.error))
         except (FormatError, WrongFormat) as exc:  # the reader's own errors; anything else fails the test
             error = (type(exc), str(exc))
-    del report.problem
+    report.events = []
     return events, {**dataclasses.asdict(report), "total": report.total_problems}, error
 
 
