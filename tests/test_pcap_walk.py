@@ -7,23 +7,20 @@ serial and other link types, with if_tsresol of powers of 10 and of 2 or junk op
 and undeclared interfaces with any times, RTAC events, microseconds and captured lengths, lengths not a
 multiple of 4; SPBs; blocks of other types), sections written by ``PcapngWriter`` from arbitrary chunks,
 and pcap files of all four magics; then damaged: cut at any offset, bytes overwritten, junk inserted,
-bytes deleted, record and block lengths and other fields corrupted. Each is read with several read sizes
-(``_READ``, from 1 byte up, so the ends of the blocks read fall everywhere), some with small look-ahead
-limits (``_SCAN``, ``_RESYNC_MAX``, ``_MAX_RECORD``), so resynchronisation slides.
+bytes deleted, record and block lengths and other fields corrupted. Each is read with several block
+sizes (``read(block=...)``, from 1 byte up, so the ends of the blocks read fall everywhere), some with the
+smallest look-ahead (``read(look_ahead=1024)``), so resynchronisation slides.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import re
 import struct
 import tempfile
 import tracemalloc
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TypeVar
-from unittest import mock
 
 import pytest
 from hypothesis import HealthCheck, example, given, settings
@@ -33,57 +30,51 @@ from sniffer.io import pcap as pcap_mod
 from sniffer.io.base import FormatError, Report, Source, WrongFormat
 from xac1_proto.chunk import DEVICE, HOST, Chunk
 
-SMALL_LIMITS = (1024, 256, 512)  # _SCAN, _RESYNC_MAX, _MAX_RECORD: resynchronisation slides in small files
+SMALL_LOOK_AHEAD = 1024  # the smallest look-ahead: resynchronisation slides in small files
+PCAP_MAGICS = [b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"]
+MAGIC = {magic: (order, unit) for magic, order, unit in zip(PCAP_MAGICS, "<><>", (1e-6, 1e-6, 1e-9, 1e-9),
+                                                            strict=True)}  # byte order, time unit
 
 
-def outcome(path: Path, host_is: str | None = None,
-            give_up_after: int | None = None) -> tuple[list[tuple[Any, ...]], dict[str, Any], Any]:
+@dataclasses.dataclass
+class LoggedReport(Report):
+    """A report that also logs each problem, in order with the chunks, in ``events``."""
+
+    events: list[tuple[Any, ...]] = dataclasses.field(default_factory=list)
+
+    def problem(self, where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
+        self.events.append(("problem", where, message, nbytes, nlines))
+        super().problem(where, message, nbytes=nbytes, nlines=nlines)
+
+
+def outcome(path: Path, host_is: str | None = None, give_up_after: int | None = None, *,
+            block: int = pcap_mod.BLOCK,
+            look_ahead: int = pcap_mod.LOOK_AHEAD) -> tuple[list[tuple[Any, ...]], dict[str, Any], Any]:
     """Everything reading ``path`` does, in order (chunks and problems), the report, the exception."""
-    report = Report(give_up_after=give_up_after)
-    events: list[tuple[Any, ...]] = []
-    problem = report.problem
-
-    def logged(where: str, message: str, *, nbytes: int = 0, nlines: int = 0) -> None:
-        events.append(("problem", where, message, nbytes, nlines))
-        problem(where, message, nbytes=nbytes, nlines=nlines)
-
-    report.problem = logged  # type: ignore[method-assign]
+    report = LoggedReport(give_up_after=give_up_after)
+    events = report.events
     error = None
     with Source(path, report) as src:
         try:
-            for c in pcap_mod.read(src, host_is):
+            for c in pcap_mod.read(src, host_is, block=block, look_ahead=look_ahead):
                 report.give_up_after = None  # data came (as xac1 decode does)
                 events.append(("chunk", type(c), c.t, c.dir, c.data, c.error))
         except (FormatError, WrongFormat) as exc:  # the reader's own errors; anything else fails the test
             error = (type(exc), str(exc))
-    del report.problem
+    report.events = []
     return events, {**dataclasses.asdict(report), "total": report.total_problems}, error
-
-
-@contextlib.contextmanager
-def limits(small: bool) -> Iterator[None]:
-    """The look-ahead limits, small or as they are."""
-    if not small:
-        yield
-        return
-    scan, resync, record = SMALL_LIMITS
-    with mock.patch.object(pcap_mod, "_SCAN", scan), mock.patch.object(pcap_mod, "_RESYNC_MAX", resync), \
-            mock.patch.object(pcap_mod, "_MAX_RECORD", record):
-        yield
 
 
 def read_any_size(path: Path, reads: tuple[int, ...], small: bool = False, host_is: str | None = None,
                   give_up_after: int | None = None) -> Any:
-    """What reading ``path`` gives, the same for every read size (the ends of the blocks read fall
-    anywhere); every problem located in the file; no byte counted twice."""
+    """What reading ``path`` gives, the same for every block size (the ends of the blocks read fall
+    anywhere), with the smallest look-ahead when ``small``; every problem located in the file; no byte
+    counted twice."""
     size = path.stat().st_size
-    with limits(small):
-        results = []
-        for n in reads:
-            with mock.patch.object(pcap_mod, "_READ", n):
-                results.append(outcome(path, host_is, give_up_after))
+    look_ahead = SMALL_LOOK_AHEAD if small else pcap_mod.LOOK_AHEAD
+    results = [outcome(path, host_is, give_up_after, block=n, look_ahead=look_ahead) for n in reads]
     for n, result in zip(reads[1:], results[1:], strict=True):
-        assert result == results[0], f"_READ {n} differs from _READ {reads[0]}"
+        assert result == results[0], f"block {n} differs from block {reads[0]}"
     events, report, _ = results[0]
     for e in events:
         if e[0] == "problem":
@@ -135,11 +126,10 @@ def spb(order: str, payload: bytes, orig: int | None = None) -> bytes:
     return block(order, 3, struct.pack(order + "I", len(payload) if orig is None else orig) + payload)
 
 
-PCAP_MAGICS = list(pcap_mod._PCAP_MAGIC)
 
 
 def pcap_header(magic: bytes, linktype: int = 250) -> bytes:
-    order = pcap_mod._PCAP_MAGIC[magic][0]
+    order = MAGIC[magic][0]
     return magic + struct.pack(order + "HHiIII", 2, 4, 0, 0, 65535, linktype)
 
 
@@ -256,7 +246,7 @@ def pcapng_files(draw: st.DrawFn) -> list[Piece]:
 @st.composite
 def pcap_files(draw: st.DrawFn) -> list[Piece]:
     magic = draw(st.sampled_from(PCAP_MAGICS))
-    order, unit = pcap_mod._PCAP_MAGIC[magic]
+    order, unit = MAGIC[magic]
     ticks = round(1 / unit)
     linktype = draw(rarely(st.sampled_from([250, 147, 250 | 0x10000000]), st.sampled_from([1, 0])))
     pieces: list[Piece] = [(pcap_header(magic, linktype), None, order)]
@@ -335,7 +325,7 @@ def ng(order: str, *blocks: bytes) -> list[Piece]:
 
 
 def pc(magic: bytes, *records: bytes) -> list[Piece]:
-    order = pcap_mod._PCAP_MAGIC[magic][0]
+    order = MAGIC[magic][0]
     return [(pcap_header(magic), None, order), *((raw, 8, order) for raw in records)]
 
 
@@ -520,7 +510,7 @@ def test_every_byte_is_line_data_or_counted_unread(folder: Path, order: str, siz
     events, report, error = read_any_size(save(folder, data, ".pcapng"), (size, 4096))
     assert sum(len(e[4]) for e in events if e[0] == "chunk") == line
     assert report["unread_bytes"] == unread and error is None
-    magic = next(m for m in PCAP_MAGICS if pcap_mod._PCAP_MAGIC[m] == (order, 1e-6))
+    magic = next(m for m in PCAP_MAGICS if MAGIC[m] == (order, 1e-6))
     records = [pcap_header(magic), pcap_record(order, rtac(1, b"0RV\r\n")), pcap_record(order, b"tiny"),
                pcap_record(order, rtac(9, b"zz")), pcap_record(order, rtac(2, b"0RV1\r\n")),
                pcap_record(order, rtac(1, b"cut"))[:-2], ]
@@ -541,17 +531,16 @@ def test_memory_is_one_block_and_a_look_ahead(folder: Path) -> None:
         k += struct.unpack_from("<I", data, k + 4)[0]
     data[k:k] = b"junk" * 100
     path = save(folder, bytes(data), ".pcapng")
-    with limits(True), mock.patch.object(pcap_mod, "_READ", 4096):
-        report = Report()
-        tracemalloc.start()
-        try:
-            with Source(path, report) as src:
-                n = sum(1 for _ in pcap_mod.read(src))
-            peak = tracemalloc.get_traced_memory()[1]
-        finally:
-            tracemalloc.stop()
+    report = Report()
+    tracemalloc.start()
+    try:
+        with Source(path, report) as src:
+            n = sum(1 for _ in pcap_mod.read(src, block=4096, look_ahead=SMALL_LOOK_AHEAD))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
     assert n == 3000 and report.total_problems == 1
-    assert peak < 4096 + SMALL_LIMITS[0] + 48 * 1024 < len(data) // 3
+    assert peak < 4096 + SMALL_LOOK_AHEAD + 48 * 1024 < len(data) // 3
 
 
 def test_errors_say_what_and_where(folder: Path) -> None:
@@ -598,8 +587,12 @@ def test_time_running_backwards_is_a_problem_of_the_capture(folder: Path, pcapng
     assert [e[2] for e in events if e[0] == "chunk"] == pytest.approx(times, abs=1e-6)
 
 
-def test_an_if_tsresol_option_cut_before_its_value_is_the_default() -> None:
+def test_an_if_tsresol_option_cut_before_its_value_is_the_default(folder: Path) -> None:
     """An IDB whose if_tsresol option has no value byte left (it raised IndexError: a traceback from
-    ``xac1 decode``): the default unit, microseconds."""
-    assert pcap_mod._tsresol(struct.pack("<HH", 9, 1), "<") == 1e-6
-    assert pcap_mod._tsresol(struct.pack("<HHB3x", 9, 1, 3), "<") == 1e-3
+    ``xac1 decode``): its packets' times are read in the default unit, microseconds; with the value byte
+    (10^-3), in milliseconds."""
+    ts = 1_790_000_000_123
+    for options, t in ((struct.pack("<HH", 9, 1), ts * 1e-6), (struct.pack("<HHB3x", 9, 1, 3), ts * 1e-3)):
+        path = save(folder, shb() + idb("<", 250, options) + epb("<", rtac(1, b"a", 0, 0), ts=ts), ".pcapng")
+        events, report, error = outcome(path)
+        assert [e[2:5] for e in events] == [(t, HOST, b"a")] and report["total"] == 0 and error is None

@@ -98,8 +98,11 @@ class Source:
     ``reopen()``: a regular file is opened again, anything else is first spooled to a temporary file."""
 
     def __init__(self, path: str | os.PathLike[str], report: Report, *,
-                 name: str | None = None) -> None:
+                 name: str | None = None, max_line: int = MAX_LINE) -> None:
+        if max_line < 2:
+            raise ValueError(f"max_line must be at least 2 bytes, not {max_line}")
         self.path = Path(path)
+        self.max_line = max_line  # the longest line read at once (a longer one comes in pieces)
         self.name = name or ("<stdin>" if str(path) == STDIN else str(path))
         self.report = report
         if str(path) == STDIN:
@@ -159,11 +162,11 @@ class Source:
     def lines(self, end: bytes = b"\n") -> Iterator[tuple[int, str]]:
         """(line number, text without its line end) for each line ending with ``end`` (LF, which reads
         CR LF too; or CR, see ``line_end``); bytes read as latin-1 so no byte is ever a decoding error.
-        A line longer than ``MAX_LINE`` comes in pieces with the same number."""
+        A line longer than ``max_line`` comes in pieces with the same number."""
         number = 0
         continued = False
         while True:
-            raw = self._raw_readline(MAX_LINE, end)
+            raw = self._raw_readline(self.max_line, end)
             if not raw:
                 return
             self.pos += len(raw)
@@ -241,12 +244,12 @@ def _readline(f: IO[bytes], limit: int, end: bytes = b"\n") -> bytes:
     return b"".join(parts)
 
 
-def numbered_lines(f: IO[bytes]) -> Iterator[tuple[int, str]]:
-    """``Source.lines`` of a file opened apart (``Source.reopen``): pieces of at most ``MAX_LINE`` bytes,
+def numbered_lines(f: IO[bytes], max_line: int = MAX_LINE) -> Iterator[tuple[int, str]]:
+    """``Source.lines`` of a file opened apart (``Source.reopen``): pieces of at most ``max_line`` bytes,
     so a line without end (a binary file, a cut export) never has to fit in memory whole."""
     number = 0
     continued = False
-    while raw := f.readline(MAX_LINE):
+    while raw := f.readline(max_line):
         if not continued:
             number += 1
         continued = not raw.endswith(b"\n")

@@ -56,62 +56,93 @@ def _data_bytes(line: str) -> bytes | None:
 
 
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
+    """The chunks of a jpnevulator capture: each line a timing line (a burst begins) or a data line (its
+    bytes), a timing line glued to a partial data line split from it (``_Bursts`` holds the burst)."""
     sides = Sides(FORMAT, host_is)
-    report = src.report
-    pending: Chunk | None = None
-    side: str | None = None
-    t: float | None = None
-    clock = Clock(report)
+    bursts = _Bursts(src, sides)
     whole = False  # did the last line read whole (a timing line, or a data line of whole bytes)?
-    for number, raw in src.lines():
-        line = raw
-        whole = False
-        while line:
-            m = _TIMING.search(line)
-            if m and m.start() > 0:  # a timing line glued to a partial data line
-                head, line = line[:m.start()], line[m.start():]
-                data = _data_bytes(head)
-                if data is not None and side is not None and pending is not None:
-                    pending = Chunk(pending.t, pending.dir, pending.data + data)
-                elif head.strip():
-                    report.problem(src.where(number), f"cannot read {shown(head)}", nlines=1)
-                continue
-            if m:
-                if pending is not None and pending.data:
-                    yield pending
-                pending = None
-                side = m.group(3).strip() if m.group(3) and m.group(3).strip() else _SINGLE
-                try:
-                    t = clock.check(wallclock(m.group(1), m.group(2)), src.where(number))
-                except ValueError as exc:
-                    report.problem(src.where(number), f"{exc}; the bytes are kept with the previous time")
-                    t = clock.last
-                d = sides.direction(side)
-                if d is None:
-                    report.problem(src.where(number), f"a third tty {side!r} (this reader takes two "
-                                                      f"lines: host and device); its bytes are skipped")
-                else:
-                    pending = Chunk(t, d, b"")
-                whole = _TIMING.fullmatch(line) is not None
-                break
+    for number, line in src.lines():
+        m = _TIMING.search(line)
+        if m and m.start() > 0:  # a timing line glued to a partial data line
+            bursts.glued(number, line[:m.start()])
+            line = line[m.start():]
+        if m:  # the burst before ends (handed on before anything of this line is said)
+            if (chunk := bursts.end()) is not None:
+                yield chunk
+            bursts.begin(number, m)
+            whole = _TIMING.fullmatch(line) is not None
+        elif line:
             data = _data_bytes(line)
+            if (chunk := bursts.data(number, line, data)) is not None:
+                yield chunk
             whole = data is not None
-            if data is None:
-                report.problem(src.where(number), f"not a jpnevulator timing or data line: {shown(line)}",
-                               nlines=1)
-            elif side is None:
-                report.problem(src.where(number), "data before any timing line (run jpnevulator with "
-                                                  "--timing-print)", nbytes=len(data))
-            elif pending is None:
-                report.problem(src.where(number), f"bytes of skipped tty {side!r}", nbytes=len(data))
-            else:
-                pending = Chunk(pending.t, pending.dir, pending.data + data)
-                if len(pending.data) >= _SPILL:  # bounded memory on a huge burst
-                    yield pending
-                    pending = Chunk(pending.t, pending.dir, b"")
-            break
-    if pending is not None and pending.data:
-        yield pending
+        else:
+            whole = False
+    if bursts.pending is not None and bursts.pending.data:
+        yield bursts.pending
     if whole:
         src.unterminated = None  # the last line is whole, line end or not (jpnevulator's Ctrl-C)
-    sides.check(report, src.name)
+    sides.check(src.report, src.name)
+
+
+class _Bursts:
+    """The burst being read: the tty that spoke (its side), its time and the bytes so far (``pending``;
+    None while a skipped tty speaks), handed on at the next timing line or in pieces when huge."""
+
+    def __init__(self, src: Source, sides: Sides) -> None:
+        self.src = src
+        self.report = src.report
+        self.sides = sides
+        self.clock = Clock(src.report)
+        self.pending: Chunk | None = None
+        self.side: str | None = None  # the tty of the last timing line (None: none yet)
+
+    def end(self) -> Chunk | None:
+        """The burst ends (at a timing line): its chunk, if it has bytes."""
+        done = self.pending if self.pending is not None and self.pending.data else None
+        self.pending = None
+        return done
+
+    def begin(self, number: int, m: re.Match[str]) -> None:
+        """A timing line: a burst of its tty begins (a third tty's is skipped, reported)."""
+        name = m.group(3)
+        self.side = name.strip() if name and name.strip() else _SINGLE
+        where = self.src.where(number)
+        try:
+            t = self.clock.check(wallclock(m.group(1), m.group(2)), where)
+        except ValueError as exc:
+            self.report.problem(where, f"{exc}; the bytes are kept with the previous time")
+            t = self.clock.last
+        d = self.sides.direction(self.side)
+        if d is None:
+            self.report.problem(where, f"a third tty {self.side!r} (this reader takes two lines: host and "
+                                       f"device); its bytes are skipped")
+        else:
+            self.pending = Chunk(t, d, b"")
+
+    def data(self, number: int, line: str, data: bytes | None) -> Chunk | None:
+        """A data line's bytes (``data``; None: the line is none), added to the burst; the burst so far
+        when it is huge (memory stays bounded)."""
+        pending, where = self.pending, self.src.where(number)
+        if data is None:
+            self.report.problem(where, f"not a jpnevulator timing or data line: {shown(line)}", nlines=1)
+        elif self.side is None:
+            self.report.problem(where, "data before any timing line (run jpnevulator with --timing-print)",
+                                nbytes=len(data))
+        elif pending is None:
+            self.report.problem(where, f"bytes of skipped tty {self.side!r}", nbytes=len(data))
+        else:
+            self.pending = Chunk(pending.t, pending.dir, pending.data + data)
+            if len(self.pending.data) >= _SPILL:
+                done, self.pending = self.pending, Chunk(pending.t, pending.dir, b"")
+                return done
+        return None
+
+    def glued(self, number: int, head: str) -> None:
+        """The partial data line before a timing line glued to it: its whole bytes added to the burst,
+        else reported."""
+        data = _data_bytes(head)
+        if data is not None and self.side is not None and self.pending is not None:
+            self.pending = Chunk(self.pending.t, self.pending.dir, self.pending.data + data)
+        elif head.strip():
+            self.report.problem(self.src.where(number), f"cannot read {shown(head)}", nlines=1)

@@ -16,16 +16,16 @@ at the next plausible record or block (a bounded look-ahead), so the packets aft
 Every byte is line data in a chunk, structure of a record read, or counted unread by a problem.
 
 One walk (``_pcap_chunks``, ``_pcapng_chunks``): a loop over the block of the file read so far
-(``_Buffer.window``: one block of ``_READ`` or more bytes, no copy) with ``struct.unpack_from`` at an
-offset and locals. Each turn takes one record or block and decides, from its header, what it is: an
-enhanced packet block (pcapng) or a record (pcap) that is whole in the block is taken in the loop, its
-packet too when it is the common one (a TX/RX event, sane microseconds, a time in range and not running
-backwards), any other packet by ``_chunk``, which says what is wrong with it; a record or block not yet
-all read makes the loop read on (``_Buffer.peek``); any other block (SHB, IDB, SPB, other types) and
-damage (an implausible or unrepeated length, the file ending inside) are read by ``_pcap_record`` /
-``_pcapng_block``, which report and resynchronise. The loop keeps its state in locals and hands it to
-``_Walk`` before any of those. Memory: one block of the file plus at most one record's (or one ``_SCAN``
-look-ahead's) bytes.
+(``_Buffer.window``: one block of ``block`` (``BLOCK``) or more bytes, no copy) with
+``struct.unpack_from`` at an offset and locals. It takes, in a row, the records (pcap) or enhanced packet
+blocks (pcapng) that are whole in the block and carry the common packet (a TX/RX event, sane microseconds,
+a time in range and not running backwards), and stops at the first other one; the loop hands its locals to
+``_Walk`` (``settle``) and ``_pcap_stop`` / ``_pcapng_stop`` say what is there: a record or block not yet
+all read (the loop reads on, ``_Buffer.peek``), else ``_pcap_record`` / ``_pcapng_block`` read it: any
+other packet (by ``_chunk``, which says what is wrong with it), any other block (SHB, IDB, SPB, other
+types), and damage (an implausible or unrepeated length, the file ending inside), which they report and
+resynchronise after. Memory: one block of the file plus at most one record's (or one ``look_ahead``'s)
+bytes.
 
 Host side default: ``TX`` (the capturing port sent the commands). The writer (``PcapngWriter``) writes
 host bytes as TX and device bytes as RX, so its files read back with the default.
@@ -66,9 +66,9 @@ _BLOCK_EPB, _BLOCK_SPB, _BLOCK_IDB = 6, 3, 1
 # interface statistics, EPB, IRIG timestamp, ARINC 429, systemd journal export, decryption secrets, custom
 _BLOCK_TYPES: Final = frozenset({*range(1, 11), 0x00000BAD, 0x40000BAD})
 _MAX_RECORD: Final = 1 << 20
-_RESYNC_MAX: Final = 1 << 16  # longest record or block taken as a resynchronisation point
-_SCAN: Final = 1 << 18  # look-ahead searched for the next record after damage
-_READ = 1 << 17  # bytes read at once (at least): the walk's block (a test makes it tiny)
+LOOK_AHEAD: Final = 1 << 18  # bytes searched at once by default for the next record after damage (a
+# quarter of them: the longest record or block taken as a resynchronisation point)
+BLOCK: Final = 1 << 17  # bytes read at once (at least) by default: the walk's block
 
 # the walk's fields, by byte order
 _PCAP_HEAD: Final = {o: struct.Struct(o + "4xII").unpack_from for o in "<>"}  # time fraction, length
@@ -86,8 +86,15 @@ def sniff_bytes(first: bytes) -> int:
     return 99 if first[:4] in _PCAP_MAGIC or first[:4] == _SHB else 0
 
 
-def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    buf = _Buffer(src)
+def read(src: Source, host_is: str | None = None, *, block: int = BLOCK,
+         look_ahead: int = LOOK_AHEAD) -> Iterator[Chunk]:
+    """The chunks of a pcap or pcapng file, read ``block`` bytes at a time (at least one): any block size
+    gives the same chunks and problems. After damage the next plausible record is searched for
+    ``look_ahead`` bytes at a time (at least 1024; records or blocks of up to a quarter of it are taken
+    as that)."""
+    if block < 1 or look_ahead < 1024:
+        raise ValueError(f"block must be at least 1 byte and look_ahead 1024, not {block} and {look_ahead}")
+    buf = _Buffer(src, block, look_ahead)
     magic = buf.peek(4)
     if magic not in _PCAP_MAGIC and magic != _SHB:
         raise FormatError(f"{src.name}: not a pcap or pcapng file (first bytes {magic.hex(' ')})")
@@ -106,8 +113,11 @@ class _Buffer:
     rest); ``window`` gives the block itself to the walk's loop. Memory: a read block plus the largest
     peek (about one record)."""
 
-    def __init__(self, src: Source) -> None:
+    def __init__(self, src: Source, block: int, look_ahead: int) -> None:
         self.src = src
+        self.block = block  # bytes read at once (at least)
+        self.look_ahead = look_ahead  # bytes searched at once after damage
+        self.longest = look_ahead // 4  # the longest record or block taken as a resynchronisation point
         self._block = b""
         self._pos = 0
         self.offset = 0
@@ -124,7 +134,7 @@ class _Buffer:
         parts = [self._block[self._pos:]]
         have = len(parts[0])
         while have < n:
-            more = self.src.read(max(n - have, _READ))
+            more = self.src.read(max(n - have, self.block))
             if not more:
                 break
             parts.append(more)
@@ -170,6 +180,11 @@ class _Walk:
         self.interfaces: list[tuple[int, float]] = []  # pcapng: (link type, seconds per timestamp unit)
         self.units: list[float] = []  # pcapng: seconds per timestamp unit of a serial interface, else 0
         self.warned: set[int] = set()  # pcapng: interfaces said to be not serial
+
+    def settle(self, n: int, last: Direction | None, t: float | None, latest: float) -> None:
+        """What the walk's loop held in locals, handed back: records or blocks read, the last data
+        packet's direction, the last good time (the clock's and the timeline's)."""
+        self.n, self.last, self.clock.last, self.timeline.last = n, last, t, latest
 
     def interface(self, linktype: int, unit: float) -> None:
         """A pcapng interface description read."""
@@ -225,59 +240,56 @@ def _pcap_start(w: _Walk, magic: bytes) -> bool:
 
 
 def _pcap_chunks(w: _Walk) -> Iterator[Chunk]:
-    """The chunks of a pcap file's records, in one walk (see the module docstring)."""
-    buf, new, rtac, max_time = w.buf, Chunk, _RTAC_FAST, MAX_TIME
-    head, seconds, by_event = _PCAP_HEAD[w.order], _U32[w.order], w.by_event
-    ticks, unit, max_record = w.ticks, w.unit, _MAX_RECORD
-    while True:  # a turn per reload of the block: after a read, damage or an uncommon packet
+    """The chunks of a pcap file's records, in one walk (see the module docstring). Each turn takes the
+    common packets (TX/RX events, sane microseconds, a time in range and not running backwards) of the
+    records in a row whole in the block read, then the record where that stopped (``_pcap_stop``: not all
+    read yet, an uncommon packet, damage, the end)."""
+    buf, new, rtac, max_time, max_record, tol = w.buf, Chunk, _RTAC_FAST, MAX_TIME, _MAX_RECORD, TOLERANCE_S
+    head, seconds, by_event, ticks, unit = _PCAP_HEAD[w.order], _U32[w.order], w.by_event, w.ticks, w.unit
+    more = True
+    while more:
         block, start = buf.window()
         p, size = start, len(block)
-        n, d, t, last, tol = w.n, w.last, w.clock.last, w.timeline.last, TOLERANCE_S
+        n, d, t, last = w.n, w.last, w.clock.last, w.timeline.last
         good = -1  # the offset of the last record taken (its seconds are the resynchronisation's hint)
-        need = 16  # bytes from p that must be in the block to go on (0: damage)
-        while p + 16 <= size:
+        need = 0  # the record at p is read by _pcap_record (damage, an uncommon packet), else the bytes
+        while True:  # from p that must be in the block to go on
+            if p + 16 > size:
+                need = 16
+                break
             frac, incl = head(block, p)
-            if incl > max_record or frac >= ticks:
-                need = 0
+            if incl > max_record or frac >= ticks or incl < 12:
                 break
             q = p + 16 + incl
             if q > size:
                 need = 16 + incl
                 break
+            secs, usecs, event = rtac(block, p + 16)
+            d2 = by_event[event]
+            t2 = secs + usecs / 1e6 if secs or usecs else seconds(block, p)[0] + frac * unit
+            if d2 is None or usecs >= 1_000_000 or t2 >= max_time or t2 + tol < last:
+                break
             n += 1
-            if incl >= 12:
-                secs, usecs, event = rtac(block, p + 16)
-                d2 = by_event[event]
-                t2 = secs + usecs / 1e6 if secs or usecs else seconds(block, p)[0] + frac * unit
-                if d2 is not None and usecs < 1_000_000 and t2 < max_time and t2 + tol >= last:
-                    d, good = d2, p
-                    t = last = t2
-                    if incl > 12:
-                        yield new(t, d, block[p + 28:q])
-                    p = q
-                    continue
-            # any other packet: _chunk says what it is
-            sec = seconds(block, p)[0]
-            w.n, w.last, w.clock.last, w.last_sec, w.timeline.last = n, d, t, sec, last
-            where = f"{w.src.at(buf.offset + p - start)} (record {n})"
-            buf.advance(q - start)
-            if (chunk := _chunk(w, where, sec + frac * unit, block[p + 16:q])) is not None:
-                yield chunk
-            need = -1
-            break
-        if need < 0:
-            continue
-        w.n, w.last, w.clock.last, w.timeline.last = n, d, t, last
+            d, good = d2, p
+            t = last = t2
+            if incl > 12:
+                yield new(t, d, block[p + 28:q])
+            p = q
+        w.settle(n, d, t, last)
         if good >= 0:
             w.last_sec = seconds(block, good)[0]
         buf.advance(p - start)
-        if need and len(buf.peek(need)) >= need:
-            continue  # read on: the record is in the block now
-        more, chunk = _pcap_record(w)  # damage, or the file ends inside a record
+        more, chunk = _pcap_stop(w, need)
         if chunk is not None:
             yield chunk
-        if not more:
-            return
+
+
+def _pcap_stop(w: _Walk, need: int) -> tuple[bool, Chunk | None]:
+    """Where the walk's loop stopped: read on when the next ``need`` bytes are only not all read yet (True,
+    None), else the record there, read by ``_pcap_record``."""
+    if need and len(w.buf.peek(need)) >= need:
+        return True, None
+    return _pcap_record(w)
 
 
 def _pcap_record(w: _Walk) -> tuple[bool, Chunk | None]:
@@ -296,7 +308,7 @@ def _pcap_record(w: _Walk) -> tuple[bool, Chunk | None]:
                                   f"missing of 16", nbytes=len(rec))
         return False, None
     sec, frac, incl, orig = struct.unpack(w.order + "IIII", rec)
-    resync = partial(_pcap_resync, order=w.order, ticks=w.ticks, last_sec=w.last_sec)
+    resync = partial(_pcap_resync, order=w.order, ticks=w.ticks, last_sec=w.last_sec, longest=buf.longest)
     why = None
     if incl > _MAX_RECORD:
         why = f"corrupt length {incl} (expected at most {_MAX_RECORD})"
@@ -306,7 +318,7 @@ def _pcap_record(w: _Walk) -> tuple[bool, Chunk | None]:
         whole = buf.peek(16 + incl)
         if len(whole) < 16 + incl:
             left = len(whole) - 16
-            if resync(buf.offset, off + 1, buf.peek(_SCAN)) is None:
+            if resync(buf.offset, off + 1, buf.peek(buf.look_ahead)) is None:
                 src.report.problem(where, f"corrupt length {incl}: the record runs {incl - left} byte(s) "
                                           f"past the end of the file ({left} left; or the file was cut "
                                           f"short inside it)", nbytes=len(whole))
@@ -329,7 +341,7 @@ def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
     window)`` finds one in a look-ahead window; the window slides on, so memory stays bounded."""
     off = buf.offset
     while True:
-        window = buf.peek(_SCAN)
+        window = buf.peek(buf.look_ahead)
         found = scan(buf.offset, start, window)
         if found is not None:
             lost = found - off
@@ -337,24 +349,24 @@ def _skip_damage(src: Source, buf: _Buffer, where: str, why: str, start: int,
                                nbytes=lost)
             buf.skip(found - buf.offset)
             return True
-        if len(window) < _SCAN:  # the end of the file is in the window
+        if len(window) < buf.look_ahead:  # the end of the file is in the window
             buf.skip(len(window))
             lost = buf.offset - off
             src.report.problem(where, f"{why}; nothing plausible follows: the rest of the file ({lost} "
                                       f"byte(s)) is skipped", nbytes=lost)
             return False
-        buf.skip(len(window) - _RESYNC_MAX - 32)
+        buf.skip(len(window) - buf.longest - 32)
         start = buf.offset
 
 
 def _pcap_resync(base: int, start: int, window: bytes, *, order: str, ticks: int,
-                 last_sec: int | None) -> int | None:
+                 last_sec: int | None, longest: int) -> int | None:
     """The file offset of the next plausible pcap record at or after ``start`` in ``window`` (which
-    starts at file offset ``base``): a sane fraction and length, a time near the last good one, and
-    either the end of the window or another sane record header right after it."""
+    starts at file offset ``base``): a sane fraction and length (at most ``longest``), a time near the last
+    good one, and either the end of the window or another sane record header right after it."""
     for p in range(start - base, len(window) - 15):
         sec, frac, incl, orig = struct.unpack_from(order + "IIII", window, p)
-        if frac >= ticks or incl > _RESYNC_MAX or incl > orig or incl < RTAC_HEADER.size:
+        if frac >= ticks or incl > longest or incl > orig or incl < RTAC_HEADER.size:
             continue
         if last_sec is not None and abs(sec - last_sec) > 86400:
             continue
@@ -362,76 +374,69 @@ def _pcap_resync(base: int, start: int, window: bytes, *, order: str, ticks: int
         if nxt > len(window):
             continue
         if nxt == len(window) or (nxt + 16 <= len(window) and
-                                  _sane_pcap_header(window[nxt:nxt + 16], order, ticks, sec)):
+                                  _sane_pcap_header(window[nxt:nxt + 16], order, ticks, sec, longest)):
             return base + p
     return None
 
 
-def _sane_pcap_header(rec: bytes, order: str, ticks: int, near: int) -> bool:
+def _sane_pcap_header(rec: bytes, order: str, ticks: int, near: int, longest: int) -> bool:
     sec, frac, incl, orig = struct.unpack(order + "IIII", rec)
-    return frac < ticks and incl <= min(orig, _RESYNC_MAX) and abs(sec - near) <= 86400
+    return frac < ticks and incl <= min(orig, longest) and abs(sec - near) <= 86400
 
 
 def _pcapng_chunks(w: _Walk) -> Iterator[Chunk]:
-    """The chunks of a pcapng file's blocks, in one walk (see the module docstring). A block's trailing
-    length and the next block's fixed fields are read with one unpack."""
-    buf, new, rtac, max_time, max_record = w.buf, Chunk, _RTAC_FAST, MAX_TIME, _MAX_RECORD
-    while True:  # a turn per reload: after a read, another block (SHB, IDB...), damage, an uncommon packet
+    """The chunks of a pcapng file's blocks, in one walk (see the module docstring). Each turn takes the
+    common packets (enhanced packet blocks of TX/RX events on a serial interface, sane microseconds, a
+    time in range and not running backwards) in a row whole in the block read (a block's trailing length
+    and the next block's fixed fields read with one unpack), then the block where that stopped
+    (``_pcapng_stop``: not all read yet, another block type, an uncommon packet, damage, the end)."""
+    buf, new, rtac, max_time, max_record, tol = w.buf, Chunk, _RTAC_FAST, MAX_TIME, _MAX_RECORD, TOLERANCE_S
+    more = True
+    while more:
         block, start = buf.window()
         p, size = start, len(block)
-        if p + 24 > size:
-            need = 24
-        else:
-            head, tail = _EPB_HEAD[w.order], _EPB_TAIL[w.order]
-            units, by_event = w.units, w.by_event
+        need = 24  # bytes from p that must be in the block read to go on (0: the loop stops at p)
+        if p + 24 <= size:
+            head, tail, units, by_event = _EPB_HEAD[w.order], _EPB_TAIL[w.order], w.units, w.by_event
             known = len(units)
-            n, d, t, last, tol = w.n, w.last, w.clock.last, w.timeline.last, TOLERANCE_S
+            n, d, t, last = w.n, w.last, w.clock.last, w.timeline.last
             block_type, total, iface, hi, lo, cap = head(block, p)
-            while True:
-                if block_type != _BLOCK_EPB or total & 3 or not 32 <= total <= max_record:
-                    need = 0  # another block, or damage
-                    break
+            need = 0
+            while block_type == _BLOCK_EPB and not total & 3 and 32 <= total <= max_record:
                 q = p + total
                 if q + 24 > size:
                     need = total + 24  # this block and the next one's fixed fields are not all read
                     break
                 end, next_type, next_total, next_iface, next_hi, next_lo, next_cap = tail(block, q - 4)
-                if end != total:
-                    need = 0
+                if end != total or iface >= known or not (unit := units[iface]) or \
+                        not 12 <= cap <= total - 32:
+                    break
+                secs, usecs, event = rtac(block, p + 28)
+                d2 = by_event[event]
+                t2 = secs + usecs / 1e6 if secs or usecs else ((hi << 32) | lo) * unit
+                if d2 is None or usecs >= 1_000_000 or t2 >= max_time or t2 + tol < last:
                     break
                 n += 1
-                if iface < known and (unit := units[iface]) and 12 <= cap <= total - 32:
-                    secs, usecs, event = rtac(block, p + 28)
-                    d2 = by_event[event]
-                    t2 = secs + usecs / 1e6 if secs or usecs else ((hi << 32) | lo) * unit
-                    if d2 is not None and usecs < 1_000_000 and t2 < max_time and t2 + tol >= last:
-                        d = d2
-                        t = last = t2
-                        if cap > 12:
-                            yield new(t, d, block[p + 40:p + 28 + cap], None)
-                        p = q
-                        block_type, total, iface, hi, lo, cap = (next_type, next_total, next_iface, next_hi,
-                                                                 next_lo, next_cap)
-                        continue
-                # any other packet: _epb_chunk says what it is
-                w.n, w.last, w.clock.last, w.timeline.last = n, d, t, last
-                where = f"{w.src.at(buf.offset + p - start)} (block {n})"
-                buf.advance(q - start)
-                if (chunk := _epb_chunk(w, where, block[p + 8:q - 4])) is not None:
-                    yield chunk
-                need = -1
-                break
-            if need < 0:
-                continue
-            w.n, w.last, w.clock.last, w.timeline.last = n, d, t, last
+                d = d2
+                t = last = t2
+                if cap > 12:
+                    yield new(t, d, block[p + 40:p + 28 + cap], None)
+                p = q
+                block_type, total, iface, hi, lo, cap = (next_type, next_total, next_iface, next_hi, next_lo,
+                                                         next_cap)
+            w.settle(n, d, t, last)
             buf.advance(p - start)
-        if need and len(buf.peek(need)) >= need:
-            continue  # read on: the block is in the block read now
-        more, chunk = _pcapng_block(w)  # another block type, damage, or the file ends near a block
+        more, chunk = _pcapng_stop(w, need)
         if chunk is not None:
             yield chunk
-        if not more:
-            return
+
+
+def _pcapng_stop(w: _Walk, need: int) -> tuple[bool, Chunk | None]:
+    """Where the walk's loop stopped: read on when the next ``need`` bytes are only not all read yet (True,
+    None), else the block there, read by ``_pcapng_block``."""
+    if need and len(w.buf.peek(need)) >= need:
+        return True, None
+    return _pcapng_block(w)
 
 
 def _pcapng_block(w: _Walk) -> tuple[bool, Chunk | None]:
@@ -464,7 +469,8 @@ def _pcapng_block(w: _Walk) -> tuple[bool, Chunk | None]:
     if why is None:
         block = buf.peek(total)
         if len(block) < total:
-            if _pcapng_resync(buf.offset, off + 4, buf.peek(_SCAN), order=w.order) is None:
+            if _pcapng_resync(buf.offset, off + 4, buf.peek(buf.look_ahead), order=w.order,
+                              longest=buf.longest) is None:
                 src.report.problem(where, f"the file ends inside block {w.n}: its length {total} runs "
                                           f"{total - len(block)} byte(s) past the end (the file was "
                                           f"cut short, or the length is corrupt)", nbytes=len(block))
@@ -477,8 +483,8 @@ def _pcapng_block(w: _Walk) -> tuple[bool, Chunk | None]:
                    f"damaged block")
     if why is not None:
         w.n -= 1
-        return _skip_damage(src, buf, where, why, off + 4, partial(_pcapng_resync, order=w.order),
-                            "block"), None
+        return _skip_damage(src, buf, where, why, off + 4,
+                            partial(_pcapng_resync, order=w.order, longest=buf.longest), "block"), None
     buf.skip(total)
     if is_shb:
         w.interfaces, w.units = [], []
@@ -496,11 +502,11 @@ def _bad_block_length(total: int, least: int) -> str | None:
     return None
 
 
-def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int | None:
+def _pcapng_resync(base: int, start: int, window: bytes, *, order: str, longest: int) -> int | None:
     """The file offset of the next whole pcapng block at or after ``start`` in ``window`` (which starts
     at file offset ``base``; blocks are 4-byte aligned): a block type the format defines and a plausible
-    length repeated at its end (an EPB's captured and original lengths of 12 would otherwise read as a
-    12-byte block inside it)."""
+    length (at most ``longest``) repeated at its end (an EPB's captured and original lengths of 12 would
+    otherwise read as a 12-byte block inside it)."""
     first = start - base
     first += -first % 4
     for p in range(first, len(window) - 11, 4):
@@ -510,7 +516,7 @@ def _pcapng_resync(base: int, start: int, window: bytes, *, order: str) -> int |
             continue
         for o in orders:
             total = struct.unpack_from(o + "I", window, p + 4)[0]
-            if total > _RESYNC_MAX or _bad_block_length(total, 28 if is_shb else 12) is not None:
+            if total > longest or _bad_block_length(total, 28 if is_shb else 12) is not None:
                 continue
             if p + total <= len(window) and struct.unpack_from(o + "I", window, p + total - 4)[0] == total:
                 return base + p

@@ -73,6 +73,21 @@ def _head(p: str | Source) -> tuple[str, Path, bytes]:
 def detect(paths: list[str] | list[Source]) -> Detection:
     """The format of these files, or FormatError naming the formats considered. Given ``Source``s, it
     sniffs their buffered heads, so a pipe is not consumed."""
+    names, totals = _scores(paths)
+    ranked = sorted(((name, min(scores)) for name, scores in totals.items()), key=lambda x: -x[1])
+    considered = tuple((n, s) for n, s in ranked if s > 0)
+    best = _decided(considered)
+    if best is None:
+        if len(names) > 1:
+            _refuse_mixed(names, totals)
+        listed = ", ".join(f"{n} ({s})" for n, s in considered) or "none matched"
+        raise FormatError(f"{', '.join(names)}: cannot tell the capture format; considered: {listed}. "
+                          f"Give --input-format, one of: {', '.join(NAMES)}")
+    return Detection(best, considered)
+
+
+def _scores(paths: list[str] | list[Source]) -> tuple[list[str], dict[str, list[int]]]:
+    """The files' names and every format's score on each file (an empty file is refused)."""
     totals: dict[str, list[int]] = {name: [] for name in NAMES}
     names: list[str] = []
     for p in paths:
@@ -82,24 +97,29 @@ def detect(paths: list[str] | list[Source]) -> Detection:
             raise FormatError(f"{name}: the file is empty")
         for fmt, module in READERS.items():
             totals[fmt].append(_score(module, path, first))
-    ranked = sorted(((name, min(scores)) for name, scores in totals.items()), key=lambda x: -x[1])
-    considered = tuple((n, s) for n, s in ranked if s > 0)
-    best = considered[0] if considered else None
+    return names, totals
+
+
+def _decided(considered: tuple[tuple[str, int], ...]) -> str | None:
+    """The format clearly ahead (a sure score, at least 10 above the next), or raw when only raw fits;
+    None when the scores do not decide."""
+    if not considered:
+        return None
+    best, score = considered[0]
     runner_up = considered[1][1] if len(considered) > 1 else 0
-    alone = best is not None and len(considered) == 1 and best[0] == "raw"  # only raw fits: take it
-    if not alone and (best is None or best[1] < SURE or best[1] - runner_up < 10):
-        if len(names) > 1:
-            per_file = [_best_of(totals, i) for i in range(len(names))]
-            if len({fmt for fmt, _score in per_file}) > 1 and all(sc >= SURE for _fmt, sc in per_file):
-                each = "; ".join(f"{n} is {fmt}" for n, (fmt, _sc) in zip(names, per_file, strict=True))
-                raise FormatError(f"the files are captures of different formats: {each}. Decode each "
-                                  f"on its own (one command per file), or name one format with "
-                                  f"--input-format")
-        listed = ", ".join(f"{n} ({s})" for n, s in considered) or "none matched"
-        raise FormatError(f"{', '.join(names)}: cannot tell the capture format; considered: {listed}. "
-                          f"Give --input-format, one of: {', '.join(NAMES)}")
-    assert best is not None  # 'alone' or a sure best
-    return Detection(best[0], considered)
+    if len(considered) == 1 and best == "raw" or score >= SURE and score - runner_up >= 10:
+        return best
+    return None
+
+
+def _refuse_mixed(names: list[str], totals: dict[str, list[int]]) -> None:
+    """Files that are each surely a capture, of different formats: refused, saying which is which."""
+    per_file = [_best_of(totals, i) for i in range(len(names))]
+    if len({fmt for fmt, _score in per_file}) > 1 and all(sc >= SURE for _fmt, sc in per_file):
+        each = "; ".join(f"{n} is {fmt}" for n, (fmt, _sc) in zip(names, per_file, strict=True))
+        raise FormatError(f"the files are captures of different formats: {each}. Decode each "
+                          f"on its own (one command per file), or name one format with "
+                          f"--input-format")
 
 
 def _best_of(totals: dict[str, list[int]], i: int) -> tuple[str, int]:

@@ -25,7 +25,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Final
 
-from xac1_proto.chunk import Chunk
+from xac1_proto.chunk import Chunk, Direction
 
 from .base import Clock, Sides, Source, shown
 
@@ -83,7 +83,7 @@ def _error_text(column: str, value: str) -> str:
 
 @dataclass(frozen=True)
 class _Layout:
-    """Which export a header names, and where its columns are."""
+    """Which export a header names, and where its columns are: what a row of it says."""
 
     header: list[str]
     table: bool  # Logic 2 data table (else the Logic 1.x analyzer export)
@@ -91,8 +91,35 @@ class _Layout:
     time_col: int
     data_col: int | None
 
+    def side(self, src: Source, row: list[str], multi_file: bool) -> str:
+        """The name of a row's side: its file (the analyzer export, or several files), else its
+        analyzer."""
+        return src.name if not self.table or multi_file else row[0]
 
-def _layout(src: Source, number: int, header_line: str) -> _Layout | None:
+    def error(self, row: list[str]) -> str | None:
+        """What the row's first non-empty error column says (None: no error)."""
+        header = self.header
+        return next((_error_text(header[i], row[i]) for i in self.error_cols
+                     if i < len(row) and row[i].strip()), None)
+
+    def is_data(self, row: list[str]) -> bool:
+        """Does the row carry a byte (every row of the analyzer export; a table's ``data`` rows)?"""
+        return not self.table or row[1].strip().lower() == "data"
+
+    def value(self, row: list[str]) -> int | None:
+        """The byte a data row carries (None: none that reads)."""
+        col = self.data_col
+        return value_byte(row[col]) if col is not None and col < len(row) else None
+
+
+def _layout(src: Source, lines: Iterator[tuple[int, str]]) -> _Layout | None:
+    """The layout the file's first line (its header) names; None for an empty file or another first
+    line (reported)."""
+    first = next(lines, None)
+    if first is None:
+        src.report.problem(src.name, "empty file")
+        return None
+    number, header_line = first
     try:
         header = [c.strip().lower() for c in next(csv.reader([header_line]))]
     except (csv.Error, StopIteration):
@@ -134,46 +161,56 @@ def _rows(src: Source, lines: Iterator[tuple[int, str]], layout: _Layout) -> Ite
 
 def read(src: Source, host_is: str | None = None, sides: Sides | None = None,
          multi_file: bool = False) -> Iterator[Chunk]:
-    """The chunk builder: one byte a chunk, held back one row so a following error row can mark it."""
+    """The chunk builder: one byte a chunk, held back one row so a following error row can mark it
+    (``_Held``)."""
     own = sides is None
     sides = sides or Sides(FORMAT, host_is)
-    report = src.report
     lines = src.lines(src.line_end())  # CR-only line ends, as some exports on other systems write
-    first = next(lines, None)
-    if first is None:
-        report.problem(src.name, "empty file")
-        return
-    layout = _layout(src, *first)
+    layout = _layout(src, lines)
     if layout is None:
         return
-    header, table = layout.header, layout.table
-    held: Chunk | None = None
+    held = _Held()
     for number, t, row in _rows(src, lines, layout):
-        key = src.name if (not table or multi_file) else row[0]
+        key = layout.side(src, row, multi_file)
         d = sides.direction(key)
         if d is None:
-            report.problem(src.where(number), f"a third side {shown(key)}; its rows are skipped", nlines=1)
+            src.report.problem(src.where(number), f"a third side {shown(key)}; its rows are skipped",
+                               nlines=1)
             continue
-        error = next((_error_text(header[i], row[i]) for i in layout.error_cols
-                      if i < len(row) and row[i].strip()), None)
-        if table and row[1].strip().lower() != "data":
-            if "error" in " ".join(row[1:]).lower():
-                mark = error or row[1].strip()
-                if held is not None and held.dir == d:
-                    held = Chunk(held.t, d, held.data, mark)
-                else:
-                    yield Chunk(t, d, b"", mark)
+        error = layout.error(row)
+        if not layout.is_data(row):
+            if "error" in " ".join(row[1:]).lower() and \
+                    (chunk := held.mark(t, d, error or row[1].strip())) is not None:
+                yield chunk
             continue
-        col = layout.data_col
-        value = value_byte(row[col]) if col is not None and col < len(row) else None
+        value = layout.value(row)
         if value is None:
-            report.problem(src.where(number), f"cannot read the byte value in {shown(','.join(row))}",
-                           nlines=1)
-            continue
-        if held is not None:
-            yield held
-        held = Chunk(t, d, bytes([value]), error)
-    if held is not None:
-        yield held
+            src.report.problem(src.where(number), f"cannot read the byte value in {shown(','.join(row))}",
+                               nlines=1)
+        elif (chunk := held.hold(Chunk(t, d, bytes([value]), error))) is not None:
+            yield chunk
+    if held.byte is not None:
+        yield held.byte
     if own:
-        sides.check(report, src.name)
+        sides.check(src.report, src.name)
+
+
+class _Held:
+    """The last byte read, held back one row so that an error row after it can mark it."""
+
+    def __init__(self) -> None:
+        self.byte: Chunk | None = None
+
+    def hold(self, byte: Chunk) -> Chunk | None:
+        """Hold this byte; the one held before it, handed on."""
+        done, self.byte = self.byte, byte
+        return done
+
+    def mark(self, t: float, d: Direction, mark: str) -> Chunk | None:
+        """An error row of side ``d``: it marks the byte held when that is of its side, else it is a chunk
+        of its own without bytes."""
+        byte = self.byte
+        if byte is not None and byte.dir == d:
+            self.byte = Chunk(byte.t, d, byte.data, mark)
+            return None
+        return Chunk(t, d, b"", mark)

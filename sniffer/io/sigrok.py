@@ -100,7 +100,7 @@ def read(src: Source, host_is: str | None = None, samplerate: float | None = Non
 
 def _extra_lines(src: Source) -> Iterator[tuple[int, str]]:
     with src.reopen() as f:
-        yield from numbered_lines(f)
+        yield from numbered_lines(f, src.max_line)
 
 
 def _annotations(src: Source, lines: Iterator[tuple[int, str]], instances: set[str], only: str | None,
@@ -126,21 +126,19 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
           instances: set[str], classes: set[str], only: str | None,
           report_all: bool = False) -> Iterator[Chunk]:
     """The chunk builder of one reading of the file (of one decoder instance when ``only`` is given):
-    each data byte held back one step so that a following error annotation can mark it."""
+    each data byte held back one step (``_LastBytes``) so that a following error annotation can mark it."""
     report = src.report
     direction = _Directions(instances, host_is)
     saw_samples = False
-    last_byte: dict[Direction, Chunk] = {}
+    held = _LastBytes()
     forms: dict[str, str] = {}  # instance -> "hex" or "ascii", from its first data annotation
     clock = Clock(report if report_all or only is None else _Quiet())
     for number, m in _annotations(src, lines, instances, only, report_all):
         start, _end, instance, cls, rest = m.groups()
         d = direction(instance, cls)
         text = _first_text(rest)
-        error = _ERRORS.get(text.strip('"').lower())
-        if error is not None or (cls or "").endswith("-err"):
-            prev = last_byte.pop(d, None)
-            yield Chunk(prev.t if prev else None, d, prev.data if prev else b"", error or f"UART {cls}")
+        if (mark := _error_mark(text, cls)) is not None:
+            yield held.marked(d, mark)
             continue
         if cls is not None and not cls.endswith("-data"):
             continue  # start/stop bits, warnings: not data
@@ -151,21 +149,45 @@ def _pass(src: Source, lines: Iterator[tuple[int, str]], host_is: str | None, sa
                 report.problem(src.where(number), problem, nlines=1)
             continue
         assert value is not None
-        t = None
-        if start is not None:
-            saw_samples = True
-            if samplerate is not None:
-                t = clock.check(int(start) / samplerate, src.where(number))
-        prev = last_byte.pop(d, None)
-        if prev is not None:
-            yield prev
-        last_byte[d] = Chunk(t, d, bytes([value]))
-        for other in [k for k in last_byte if k != d]:
-            yield last_byte.pop(other)
-    yield from last_byte.values()
+        saw_samples = saw_samples or start is not None
+        t = None if start is None or samplerate is None else \
+            clock.check(int(start) / samplerate, src.where(number))
+        yield from held.hold(Chunk(t, d, bytes([value])))
+    yield from held.bytes.values()
     if saw_samples and samplerate is None and report_all:
         report.note(f"{src.name}: sample numbers present but no --samplerate given: bytes have no time, "
                     f"so timing checks (no-answer) are skipped")
+
+
+def _error_mark(text: str, cls: str | None) -> str | None:
+    """The UART error an annotation says (``Frame error``, ``Parity error``, a ``*-err`` class), else
+    None."""
+    error = _ERRORS.get(text.strip('"').lower())
+    if error is not None or (cls or "").endswith("-err"):
+        return error or f"UART {cls}"
+    return None
+
+
+class _LastBytes:
+    """The last data byte of each line, held back so that an error annotation after it can mark it."""
+
+    def __init__(self) -> None:
+        self.bytes: dict[Direction, Chunk] = {}
+
+    def marked(self, d: Direction, mark: str) -> Chunk:
+        """An error annotation on line ``d``: the byte held of that line marked (a chunk without bytes
+        when none is held)."""
+        prev = self.bytes.pop(d, None)
+        return Chunk(prev.t if prev else None, d, prev.data if prev else b"", mark)
+
+    def hold(self, byte: Chunk) -> list[Chunk]:
+        """Hold a data byte; the bytes held before it, handed on (its line's, then the other line's)."""
+        done = []
+        if (prev := self.bytes.pop(byte.dir, None)) is not None:
+            done.append(prev)
+        done.extend(self.bytes.values())
+        self.bytes = {byte.dir: byte}
+        return done
 
 
 def _data_problem(text: str, value: int | None, instance: str, forms: dict[str, str]) -> str | None:
@@ -217,7 +239,7 @@ def _prescan(src: Source) -> tuple[set[str], set[str], float | None]:
     classes: set[str] = set()
     spans: list[int] = []
     with src.reopen() as f:
-        for _number, line in islice(numbered_lines(f), _PRESCAN):
+        for _number, line in islice(numbered_lines(f, src.max_line), _PRESCAN):
             m = _LINE.fullmatch(line)
             if m:
                 instances.add(m.group(3))

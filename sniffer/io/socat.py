@@ -19,24 +19,26 @@ direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``
 socat appending to the same log starts again at ``from=0``, which is accepted. A header whose time is
 more than a second before the one before it is reported too (``timeline``: the clock was set back).
 
-One parser: the file is read in blocks of ``BLOCK`` characters (``_Blocks``: never the whole file),
-handed on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
-(numbered, line end stripped; a line longer than ``MAX_LINE`` in pieces of the same number), every
-character accounted for: the lines that make up almost every dump, a header as socat writes it and the
-line after it when that starts with a space (its hex row), as one match with their fields; any other
-line as itself. The transfer builder (``_Transfers``: one chunk per transfer, handed on in bounded
-pieces; ``length=`` beyond 16 MiB is damage) takes the header-and-row matches, further hex rows and the
-``--`` that ends a ``-x -v`` transfer itself (``read``): the counters checked by writing the two numbers
-it expects (``from=`` where the side's last transfer ended, ``to=`` where ``length=`` ends) and
-comparing them with the text (read and checked in full, ``_counters``, when they differ), the time
-computed as ``wallclock`` computes it (the start of the header's second remembered, found from the
-minute's start when the second changes, plus the fraction). A hex row's bytes come from
-``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them),
-else from ``_HEX`` itself; short rows and lengths are remembered (a conversation repeats itself). Every
-other line, any line while -v text is being read, and a header the match does not take (another
-spelling, a date that is none) go through ``step``: each line classified (``tokenize``: what a line is)
-and acted on the same way for every kind, whatever the dump's style and state. -v text is decoded a run
-of characters at a time.
+One parser: the file is read in blocks of ``block`` characters (``_Blocks``: never the whole file), handed
+on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
+(numbered, line end stripped; a line longer than the source's ``max_line`` in pieces of the same number),
+every character accounted for: the lines that make up almost every dump, a header as socat writes it and
+the line after it when that starts with a space (its hex row), as one match with their fields; any other
+line as itself. The transfer builder (``_Transfers``: one chunk per transfer, handed on in bounded pieces;
+``length=`` beyond 16 MiB is damage) reads each by its kind (``read``): a header and its row
+(``_header_match``; a row holding the transfer whole makes its chunk at once, held until the next line
+shows that no more rows follow), a further hex row (``_further_row``), the ``--`` that ends a ``-x -v``
+transfer held whole. The counters are checked by writing the two numbers expected (``from=`` where the
+side's last transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and
+checked in full, ``_counters``, when they differ); the time is computed as ``wallclock`` computes it
+(``_HeaderClock``: the start of the header's second remembered, found from the minute's start when the
+second changes, plus the fraction). A hex row's bytes come from ``bytes.fromhex`` checked against
+``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them), else from ``_HEX`` itself; short rows
+and lengths are remembered (a conversation repeats itself). Every other line, any line while -v text is
+being read, and a header the match does not take (another spelling, a date that is none) are queued for
+``step``: each line classified (``tokenize``: what a line is) and acted on by its kind's handler
+(``on_kind``), the same way whatever the dump's style and state. -v text is decoded a run of characters at
+a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
@@ -51,7 +53,6 @@ from typing import Final
 
 from xac1_proto.chunk import Chunk, Direction
 
-from . import base as _base
 from .base import MAX_TIME, MIN_TIME, Clock, Report, Sides, Source, shown, wallclock
 from .timeline import TOLERANCE_S, Timeline
 
@@ -79,9 +80,10 @@ _KNOWN_TEXT: Final = 160  # characters of the longest row remembered
 _TEXT_ROWS: Final = 256  # the longest transfer whose hex rows are kept in case they were -v text
 _TEXT: Final = "text"  # a transfer's mode: -v text (None: not known yet; "hex": hex rows)
 _HEXMODE: Final = "hex"
+_Stepped = tuple[Chunk | None, str | None]  # what ``step`` makes of a line: a chunk, a rest to read
 
-BLOCK = 1 << 14  # characters read at once: a region, and the list findall makes of it, stay small (a
-# test makes it tiny so that block ends fall everywhere)
+BLOCK: Final = 1 << 14  # characters read at once by default: a region, and the list findall makes of it,
+# stay small
 
 
 def sniff(head: list[str]) -> int:
@@ -149,29 +151,34 @@ def _block_matcher(max_line: int, crlf: bool) -> re.Pattern[str]:
                       + rf"|([^\n]{{0,{max_line - 1}}})\n|([^\n]{{{max_line}}})")
 
 
-def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
-    return _Transfers(src, Sides(FORMAT, host_is, (">", "<"))).read(_Blocks(src))
+def read(src: Source, host_is: str | None = None, *, block: int = BLOCK) -> Iterator[Chunk]:
+    """The chunks of a socat dump, read ``block`` characters at a time (at least one): any block size gives
+    the same chunks and problems."""
+    if block < 1:
+        raise ValueError(f"block must be at least 1 character, not {block}")
+    return _Transfers(src, Sides(FORMAT, host_is, (">", "<"))).read(_Blocks(src, block))
 
 
 class _Blocks:
-    """The file read in blocks of ``BLOCK`` characters (latin-1), handed on as regions of whole lines
+    """The file read in blocks of ``block`` characters (latin-1), handed on as regions of whole lines
     (never the whole file): ``regions`` gives ``(text, start, end)``, ``text[start:end]`` ending with a
-    line end, or made of ``MAX_LINE`` pieces of a line longer than that. What follows the last line end
+    line end, or made of ``max_line`` pieces of a line longer than that. What follows the last line end
     of the file is ``tail``, once the regions are all read."""
 
-    def __init__(self, src: Source) -> None:
+    def __init__(self, src: Source, block: int) -> None:
         self.src = src
+        self.block = block
         self.tail = ""
 
     def regions(self) -> Iterator[tuple[str, int, int]]:
-        read, max_line = self.src.read, _base.MAX_LINE
+        read, max_line, block = self.src.read, self.src.max_line, self.block
         buf, pos = "", 0
         while True:
             cut = buf.rfind("\n", pos) + 1
             if cut <= pos:  # no whole line left: pieces of a long one, or another block
                 if len(buf) - pos >= max_line:
                     cut = pos + (len(buf) - pos) // max_line * max_line
-                elif data := read(BLOCK):
+                elif data := read(block):
                     buf, pos = buf[pos:] + data.decode("latin-1"), 0
                     continue
                 else:
@@ -225,166 +232,261 @@ class _Transfer:
         return chunk
 
 
+class _HeaderClock:
+    """The times of a log's headers, as ``wallclock`` computes them: a header's whole second plus its
+    fraction, the 9-digit quirk read (``_Clock``). The start of the last header's minute is remembered
+    (seconds in a minute are linear: time zones change their offset on whole minutes), and of its
+    second, so a header of the same second or minute costs one addition. A time that cannot be one is
+    reported (``times``) and the last good time (``last``) kept; one that runs backwards is reported
+    (``timeline``)."""
+
+    __slots__ = ("where", "quirk", "times", "timeline", "last", "minute", "base", "second", "second_base")
+
+    def __init__(self, src: Source) -> None:
+        self.where = src.where
+        self.quirk = _Clock()
+        self.times = Clock(src.report)
+        self.timeline = Timeline(src.report)
+        self.last = -math.inf  # the last good time (-inf: none yet)
+        self.minute = ""  # the last header's ``YYYY/MM/DD HH:MM`` (when all its seconds are in range)
+        self.base = 0.0  # and the start of that minute
+        self.second = ""  # the last header's ``YYYY/MM/DD HH:MM:SS`` that ``at`` read, and its start
+        self.second_base = 0.0
+
+    def plain(self, second: str) -> bool:
+        """Is this ``YYYY/MM/DD HH:MM:SS`` of a header as socat writes it one ``at`` reads: the second of
+        the header before, a second of its minute, or a date and minute of digits (``_MINUTE``)?"""
+        return second == self.second or second[:16] == self.minute or _MINUTE.match(second) is not None
+
+    def at(self, number: int, second: str, frac: str) -> float | None:
+        """The time of a header as socat writes it (``second`` as ``plain`` takes it, ``frac`` with its
+        point) on line ``number``."""
+        if second != self.second:
+            if second[:16] != self.minute:  # a new minute
+                return self.time(number, second[:10], second[11:], frac[1:])
+            self.second, self.second_base = second, self.base + _SECONDS[second[17:]]
+        t = self.second_base + float(frac if len(frac) == 7 else "." + self.quirk.fraction(frac[1:]))
+        if t + TOLERANCE_S < self.last:
+            self._backwards(number, t)
+        self.last = t
+        return t
+
+    def time(self, number: int, date: str, clock: str, frac: str | None) -> float | None:
+        """The time of any header (``clock``: ``HH:MM:SS``): a time that cannot be one is reported and the
+        previous one kept. The minute's start is remembered when all its seconds are in range."""
+        frac = self.quirk.fraction(frac or "")
+        ss = int(clock[6:])
+        base = self.base if f"{date} {clock[:5]}" == self.minute and ss < 60 else \
+            self._minute_start(number, date, clock, frac)
+        previous = None if self.last == -math.inf else self.last
+        if base is None:
+            return previous
+        digits = frac[:12]
+        t = base + ss + (int(digits) / _POWERS[len(digits)] if digits else 0.0)
+        if not MIN_TIME <= t < MAX_TIME:
+            self.times.last = previous
+            return self.times.check(t, self.where(number))  # said; the previous time
+        if t + TOLERANCE_S < self.last:
+            self._backwards(number, t)
+        self.last = t
+        return t
+
+    def _backwards(self, number: int, t: float) -> None:
+        """A time more than ``TOLERANCE_S`` before the last good one: reported by the timeline."""
+        self.timeline.last = self.last
+        self.timeline.check(t, self.where(number))
+
+    def _minute_start(self, number: int, date: str, clock: str, frac: str) -> float | None:
+        """The start of a header's minute, remembered when all its seconds are in range; None for a time
+        that cannot be one (reported as ``wallclock`` says it of the whole time)."""
+        try:
+            if int(clock[6:]) >= 60:
+                raise ValueError(clock)
+            base = wallclock(date, f"{clock[:5]}:00")
+        except ValueError:
+            try:
+                wallclock(date, f"{clock}.{frac}" if frac else clock)
+            except ValueError as exc:
+                self.times.report.problem(self.where(number), f"{exc}; the bytes are kept with the "
+                                                              f"previous time")
+            return None
+        in_range = MIN_TIME <= base < MAX_TIME - 61
+        self.minute, self.base = (f"{date} {clock[:5]}", base) if in_range else ("", 0.0)
+        return base
+
+
 class _Transfers:
-    """The chunk builder: turns the classified lines into one chunk per transfer (long transfers in
-    bounded pieces), checking ``length=``, the counters and the times."""
+    """The chunk builder: turns the file's lines into one chunk per transfer (long transfers in bounded
+    pieces), checking ``length=``, the counters and the times. ``read`` takes the lines of a dump as socat
+    writes it (a header and its hex row, further rows, the ``--`` after a transfer held whole); ``step``
+    every other line, and every line while -v text is being read."""
 
     def __init__(self, src: Source, sides: Sides) -> None:
         self.src = src
         self.report = src.report
-        self.sides = sides
         self.dirs: dict[str, Direction] = {}
         for mark in (">", "<"):
             d = sides.direction(mark)
             assert d is not None
             self.dirs[mark] = d
-        self.clock = _Clock()
-        self.times = Clock(src.report)
-        self.timeline = Timeline(src.report)
+        self.clock = _HeaderClock(src)
         self.cur: _Transfer | None = None  # the transfer being read
+        # a whole transfer read from its header and hex row (no _Transfer made), handed on when the next
+        # line shows that no more rows follow; its header's line
+        self.held: Chunk | None = None
+        self.held_line = 0
+        self.number = 0  # the number of the last line read
+        self.continued = False  # whether that line's last piece had no line end
+        self.here = True  # lines are read by ``read`` (no piece of a long line, no -v text going on)
+        self.queued: list[tuple[int, str]] = []  # lines (numbered) that ``read`` hands to ``step``
         self.text_bytes = 0
         self.text_ended = 0  # the last line on which -v text ended a transfer with the line itself
         self.hex_seen = False  # a transfer's hex rows held its length= bytes: the log dumps hex rows
         self.following: dict[str, int] = {}  # side name -> the from= its next transfer should have
-        # the last header's ``YYYY/MM/DD HH:MM`` and its start (``wallclock``): seconds in a minute are
-        # linear (time zones change their offset on whole minutes)
-        self.minute: tuple[str, float] = ("", 0.0)
         self.known: dict[str, bytes] = {}  # hex rows read (text -> bytes)
         self.sizes: dict[str, int] = {}  # length= read (text -> number)
+        self.on_kind = {HEADER: self._on_header, END: self._on_end, DIAG: self._on_diag,
+                        BLANK: self._on_blank, HEXROW: self._on_hex_row, OTHER: self._on_other}
 
     def read(self, blocks: _Blocks) -> Iterator[Chunk]:
         """Every line of the file, a region of whole lines at a time: ``findall`` cuts it into lines, a
-        header and its hex row as one (``_block_matcher``); those, a further hex row and the ``--`` after
-        a transfer held whole are taken here; every other line, and any line while -v text is being read
-        or after a piece of a long line, goes to ``step`` (see the module docstring), then the whole
-        file's last line if it has no line end. A header and its row that hold the transfer whole make
-        its chunk at once, held in a local until the next line shows that no more rows follow (it becomes
-        ``cur`` before anything else reads the state). The line number and the last time are locals too,
-        handed to the clocks before anything else."""
-        known, sizes, following, dirs = self.known, self.sizes, self.following, self.dirs
-        timeline, nine = self.timeline, self.clock.fraction
-        tol, new, seconds = TOLERANCE_S, Chunk, _SECONDS
-        crlf = b"\r\n" in self.src.head()  # (nothing is read yet)
-        findall, minute_ok = _block_matcher(_base.MAX_LINE, crlf).findall, _MINUTE.match
-        minute, base = self.minute
-        last_second, second_base = "", 0.0  # a header's YYYY/MM/DD HH:MM:SS read here and its start
-        held: Chunk | None = None  # a whole transfer read here, handed on at the next header (its header's
-        # line is the one before its row's: ``number - 1`` until the next line is numbered, then ``- 2``)
-        number, continued = 0, False  # the last line's number; whether its last piece had no line end
-        hex_seen = self.hex_seen
-        here = True  # lines are read here (no piece of a long line going on, no -v text being read)
-        last_t = timeline.last  # the time of the last header read here (times.last too, when it was one)
-        t: float | None
-        cur: _Transfer | None
-        texts: list[str]
+        header and its hex row as one (``_block_matcher``), and each is read by its kind: a header, a
+        further hex row, the ``--`` after a transfer held whole, anything else (for ``step``: see the
+        module docstring); then the file's last line if it has no line end."""
+        findall = _block_matcher(self.src.max_line, b"\r\n" in self.src.head()).findall  # (nothing read yet)
+        header, further_row, for_step = self._header_match, self._further_row, self._line_for_step
+        plain = self.clock.plain
+        queued = self.queued
+        chunk: Chunk | None
         for region in blocks.regions():
-            for mark, second, frac, length_s, from_s, to_s, row, line, piece in findall(*region):
-                if mark and here and (second == last_second or second[:16] == minute or minute_ok(second)):
-                    number += 1
-                    if held is not None:  # the transfer before ends
-                        yield held
-                        held = None
-                    elif self.cur is not None and (chunk := self.finish(number)) is not None:
+            for match in findall(*region):
+                if match[0]:
+                    if self.here and plain(match[1]):  # the transfer before ends (held whole, or finished)
+                        chunk, self.held = self.held or self.finish(self.number + 1), None
+                        if chunk is not None:
+                            yield chunk  # (before anything of the header is said)
+                        header(match)
+                    else:
+                        self._header_for_step(match)
+                else:
+                    line, piece = match[7], match[8]
+                    if line[:1] == " " and self.here and (self.held or self.cur) is not None:
+                        chunk = further_row(line.rstrip("\r"))
+                    elif line[:2] == "--":
+                        chunk = self._dashes(line, piece)
+                    else:
+                        chunk = for_step(line, piece)
+                    if chunk is not None:
                         yield chunk
-                    length = sizes.get(length_s)  # (a length remembered is at most 16 MiB)
-                    first = following.get(mark, -1)  # from= as expected and to= as length= says: said
-                    if length is not None and from_s == str(first) and to_s == str(first + length - 1):
-                        following[mark] = first + length  # with two numbers written, not three read
-                    else:
-                        length = self._counters(number, mark, self._size(length_s), int(from_s), int(to_s))
-                    if second != last_second and second[:16] == minute:  # a new second of this minute
-                        last_second, second_base = second, base + seconds[second[17:]]
-                    if second == last_second:
-                        t = second_base + float(frac if len(frac) == 7 else "." + nine(frac[1:]))
-                        if t + tol < last_t:
-                            timeline.last = last_t
-                            timeline.check(t, self.src.where(number))
-                        last_t = t
-                    else:  # a new minute
-                        self._clocks(last_t)
-                        t = self._time(number, second[:10], second[11:], frac[1:])
-                        minute, base = self.minute
-                        last_t = timeline.last
-                    if not row:
-                        self.cur = _Transfer(number, dirs[mark], t, length)
-                        continue
-                    number += 1
-                    data = known.get(row) or self._hex_row(row)
-                    if data:
-                        if len(data) == length:
-                            held = new(t, dirs[mark], data)  # its header's line: number - 1
-                            if not hex_seen:
-                                hex_seen = self.hex_seen = True
-                            continue
-                        cur = self.cur = _Transfer(number - 1, dirs[mark], t, length)
-                        cur.add_hex_row(row.rstrip("\r"), data)
-                        continue
-                    self.cur = _Transfer(number - 1, dirs[mark], t, length)
-                    texts = [row.rstrip("\r")]  # no hex row: step reads it
-                elif held is not None and line[:2] == "--" and line.strip() == "--":
-                    number += 1  # the end of a -x -v transfer held whole (as step's END would end it)
-                    yield held
-                    held = None
-                    continue
-                elif line[:1] == " " and here and (held is not None or self.cur is not None):
-                    number += 1  # a further hex row of the transfer
-                    text = line.rstrip("\r")
-                    data = known.get(text) or self._hex_row(text)
-                    if held is not None:
-                        self._hold(number - 2, held)
-                        held = None
-                    cur = self.cur
-                    assert cur is not None
-                    if data:
-                        cur.add_hex_row(text, data)
-                        if len(cur.data) >= _SPILL and (chunk := cur.spill()) is not None:
-                            yield chunk
-                        continue
-                    texts = [text]
-                else:  # anything else: a line (or its piece) for step
-                    if not continued:
-                        number += 1
-                    continued = piece != ""
-                    self.src.unterminated = number if continued else None
-                    if mark:  # a header and its row (-v text being read, a line's last piece, another date)
-                        texts = [f"{mark} {second}{frac}  length={length_s} from={from_s} to={to_s}"]
-                        if row:
-                            texts.append(row.rstrip("\r"))
-                    else:
-                        texts = [piece.rstrip("\r") if piece else line.rstrip("\r")]
-                if held is not None:  # the transfer held becomes the state step reads
-                    self._hold(number - 2, held)
-                    held = None
-                self._clocks(last_t)
-                for i, text in enumerate(texts):
-                    rest: str | None = text
-                    while rest is not None:
-                        rest = yield from self.step(number + i, rest)
-                number += len(texts) - 1
-                minute, base = self.minute
-                last_t = timeline.last
-                here = not continued and ((cur := self.cur) is None or cur.mode is not _TEXT)
-        if held is not None:
-            self._hold(number - 1, held)
-        self._clocks(last_t)
-        if blocks.tail:  # the last line has no line end
-            if not continued:
-                number += 1
-            self.src.unterminated = number
-            rest = blocks.tail.rstrip("\r")
+                if queued:
+                    yield from self._step_queued()
+        yield from self._last_line(blocks.tail)
+
+    def _header_match(self, match: tuple[str, ...]) -> None:
+        """A header as socat writes it, with its first hex row when one follows (the transfer before it
+        has ended): this transfer begins; one whose row holds it whole is held (no ``_Transfer``)."""
+        mark, second, frac, length_s, from_s, to_s, row, _, _ = match
+        number = self.number + 1
+        # the counters compared as text with the two numbers expected (``from=`` where the side's last
+        # transfer ended, ``to=`` where ``length=`` ends), read and checked in full when they differ
+        length = self.sizes.get(length_s)  # (a length remembered is at most 16 MiB)
+        first = self.following.get(mark, -1)
+        if length is not None and from_s == str(first) and to_s == str(first + length - 1):
+            self.following[mark] = first + length
+        else:
+            length = self._counters(number, mark, self._size(length_s), int(from_s), int(to_s))
+        t = self.clock.at(number, second, frac)
+        d = self.dirs[mark]
+        if not row:
+            self.number, self.cur = number, _Transfer(number, d, t, length)
+            return
+        self.number = number + 1
+        data = self.known.get(row) or self._hex_row(row)
+        if data and len(data) == length:
+            self.held, self.held_line, self.hex_seen = Chunk(t, d, data), number, True
+            return
+        cur = self.cur = _Transfer(number, d, t, length)
+        if data:
+            cur.add_hex_row(row.rstrip("\r"), data)
+        else:
+            self.queued.append((number + 1, row.rstrip("\r")))  # no hex row: step reads it
+
+    def _dashes(self, line: str, piece: str) -> Chunk | None:
+        """A line starting with ``--``: the end of a -x -v transfer held whole (as step's END would end
+        it), else a line for ``step``."""
+        if self.held is None or line.strip() != "--":
+            self._line_for_step(line, piece)
+            return None
+        self.number += 1
+        chunk, self.held = self.held, None
+        return chunk
+
+    def _header_for_step(self, match: tuple[str, ...]) -> None:
+        """A header while -v text is read or a line's pieces go on, or of a date ``plain`` refuses: queued
+        for ``step`` with its row."""
+        mark, second, frac, length_s, from_s, to_s, row, _, _ = match
+        self._line_for_step(f"{mark} {second}{frac}  length={length_s} from={from_s} to={to_s}", "")
+        if row:
+            self.number += 1
+            self.queued.append((self.number, row.rstrip("\r")))
+
+    def _further_row(self, text: str) -> Chunk | None:
+        """A line starting with a space while a transfer is read: a further hex row of it (a long
+        transfer's bytes handed on in pieces), else a line for ``step``."""
+        self.number += 1
+        if self.held is not None:
+            self._hold()
+        cur = self.cur
+        assert cur is not None
+        data = self.known.get(text) or self._hex_row(text)
+        if not data:
+            self.queued.append((self.number, text))
+            return None
+        cur.add_hex_row(text, data)
+        return cur.spill() if len(cur.data) >= _SPILL else None
+
+    def _line_for_step(self, line: str, piece: str) -> None:
+        """Any other line, or a piece of a line longer than ``max_line`` (numbered as the piece before it
+        when that went on; then the file so far ends inside it: ``unterminated``): queued for ``step``."""
+        if not self.continued:
+            self.number += 1
+        self.continued = piece != ""
+        self.src.unterminated = self.number if self.continued else None
+        if self.held is not None:
+            self._hold()
+        self.queued.append((self.number, piece.rstrip("\r") if piece else line.rstrip("\r")))
+
+    def _step_queued(self) -> Iterator[Chunk]:
+        """The lines queued, read by ``step``; then whether ``read`` reads the next lines itself."""
+        step = self.step
+        for number, text in self.queued:
+            rest: str | None = text
             while rest is not None:
-                rest = yield from self.step(number, rest)
-        yield from self.end(number)
+                rest = yield from step(number, rest)
+        self.queued.clear()
+        cur = self.cur
+        self.here = not self.continued and (cur is None or cur.mode is not _TEXT)
 
-    def _clocks(self, last: float) -> None:
-        """The last good time (``read`` holds it), handed to the clocks (the same time for both: none yet
-        is -inf to the timeline and None to ``times``)."""
-        self.timeline.last = last
-        self.times.last = None if last == -math.inf else last
+    def _last_line(self, tail: str) -> Iterator[Chunk]:
+        """The file's end: the transfer held handed to ``step``'s state, the last line read when it has no
+        line end, then the transfer being read ends."""
+        if self.held is not None:
+            self._hold()
+        if tail:
+            if not self.continued:
+                self.number += 1
+            self.src.unterminated = self.number
+            rest: str | None = tail.rstrip("\r")
+            while rest is not None:
+                rest = yield from self.step(self.number, rest)
+        yield from self.end(self.number)
 
-    def _hold(self, line: int, held: Chunk) -> None:
-        """A whole transfer read by ``read`` (a header and a hex row) becomes the transfer being read."""
-        cur = self.cur = _Transfer(line, held.dir, held.t, len(held.data))
+    def _hold(self) -> None:
+        """The whole transfer held becomes the transfer being read (a line after its row came)."""
+        held = self.held
+        assert held is not None
+        self.held = None
+        cur = self.cur = _Transfer(self.held_line, held.dir, held.t, len(held.data))
         cur.mode = _HEXMODE
         cur.data += held.data
 
@@ -399,8 +501,9 @@ class _Transfers:
         return size
 
     def _counters(self, number: int, mark: str, length: int, start: int, end: int) -> int:
-        """A header's counters and length checked (by ``step``, or by ``read`` when it found them other than
-        it expected: the first transfer of a side, a restart, a leading zero, damage); the length read."""
+        """A header's counters and length checked (by ``_header``, or by ``_header_match`` when it found them
+        other than it expected: the first transfer of a side, a restart, a leading zero, damage); the length
+        read."""
         following = self.following
         if end - start + 1 != length or length > _MAX_TRANSFER or \
                 mark in following and start != following[mark] and start != 0:
@@ -450,42 +553,73 @@ class _Transfers:
         return Chunk(rec.t, rec.dir, bytes(rec.data)) if rec.data else None
 
     def step(self, number: int, text: str) -> Generator[Chunk, None, str | None]:
-        """Read one line or the rest of one; returns (as the generator's value) a rest still to read."""
+        """Read one line or the rest of one by its kind (``tokenize``; -v text while a transfer of it
+        wants bytes); returns (as the generator's value) a rest still to read."""
         cur = self.cur
         if cur is not None and cur.mode == _TEXT and cur.got < cur.length and \
                 not (cur.got == 0 and _HEADER.match(text)):  # else an empty-looking transfer
             return (yield from self._text(number, text))
         kind, m = tokenize(text)
-        if kind == HEADER:
-            if (chunk := self.finish(number)) is not None:
-                yield chunk
-            m = _HEADER_LINE.match(text)
-            assert m is not None
-            self._header(number, m)
-        elif kind in (END, DIAG):
-            chunk = self.finish(number) if kind == END or cur is None or cur.mode != _TEXT else None
-            if chunk is not None:
-                yield chunk
-        elif kind == BLANK:
-            if cur is not None and (cur.mode is None or self._rows_as_text(cur, whole=False)):
-                cur.mode = _TEXT
-                return text
-        elif cur is None:
+        chunk, rest = self.on_kind[kind](number, text, m)
+        if chunk is not None:
+            yield chunk
+        return rest
+
+    # what ``step`` does with each kind of line: (a chunk to hand on or None, a rest of the line to read)
+
+    def _on_header(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
+        """A transfer header: the transfer being read ends (handed on, and the header read again: nothing
+        of it is said before), else this one begins."""
+        if self.cur is not None:
+            return self.finish(number), text
+        m = _HEADER_LINE.match(text)
+        assert m is not None
+        self._header(number, m)
+        return None, None
+
+    def _on_end(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
+        """The ``--`` after a -x -v transfer: it ends."""
+        return self.finish(number), None
+
+    def _on_diag(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
+        """A socat diagnostic: the transfer being read ends, unless it is -v text (whose ``length=`` says
+        where it ends)."""
+        cur = self.cur
+        return (self.finish(number) if cur is None or cur.mode != _TEXT else None), None
+
+    def _on_blank(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
+        """A blank line: -v text of the transfer being read when it can be (its line end a byte), else
+        nothing."""
+        cur = self.cur
+        if cur is not None and (cur.mode is None or self._rows_as_text(cur, whole=False)):
+            cur.mode = _TEXT
+            return None, text
+        return None, None
+
+    def _on_hex_row(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
+        """A row of hex bytes: the transfer's bytes when it is read as hex rows (a long one's handed on in
+        pieces), else as any other line."""
+        cur = self.cur
+        if cur is None or cur.mode == _TEXT:
+            return self._on_other(number, text, m)
+        assert m is not None
+        cur.add_hex_row(text, bytes.fromhex(m.group(1)))
+        return cur.spill(), None
+
+    def _on_other(self, number: int, text: str, m: re.Match[str] | None) -> _Stepped:
+        """Any other line: -v text of the transfer being read when it can be, else reported."""
+        cur = self.cur
+        if cur is None:
             self.report.problem(self.src.where(number), f"not a socat header, data or log line: "
                                                         f"{shown(text)}", nlines=1)
-        elif kind == HEXROW and cur.mode in (None, _HEXMODE):
-            assert m is not None
-            cur.add_hex_row(text, bytes.fromhex(m.group(1)))
-            if (chunk := cur.spill()) is not None:
-                yield chunk
         elif cur.mode is None or self._rows_as_text(cur, whole=False):
             cur.mode = _TEXT
-            return text
+            return None, text
         else:
             cur.rows = None  # (rows followed by a line that is neither a row nor their text: damage)
             self.report.problem(self.src.where(number), f"cannot read this dump line: {shown(text)}",
                                 nlines=1)
-        return None
+        return None, None
 
     def _text(self, number: int, text: str) -> Generator[Chunk, None, str | None]:
         """-v text of the current transfer; returns what follows its last byte on the line."""
@@ -524,51 +658,15 @@ class _Transfers:
         """A transfer's header: its counters, length and time checked; it becomes the transfer read."""
         mark, date, clock, frac, length_s, start_s, end_s, tail = m.groups()
         length = self._counters(number, mark, int(length_s), int(start_s), int(end_s))
-        t = None if date is None else self._time(number, date, clock, frac)
+        t = None if date is None else self.clock.time(number, date, clock, frac)
         self.cur = _Transfer(number, self.dirs[mark], t, length)
         if tail and not tail.isspace():
             self.report.problem(self.src.where(number), f"unexpected text after the header: "
                                                         f"{shown(tail.strip())}")
 
-    def _time(self, number: int, date: str, clock: str, frac: str | None) -> float | None:
-        """A header's time (``clock``: ``HH:MM:SS``): its whole second plus the fraction, as ``wallclock``
-        computes it, the 9-digit quirk read (``_Clock``); a time that cannot be one, or that runs
-        backwards, is reported (the previous time is kept for the former). The minute's seconds are
-        remembered when all of them are in range (``read`` then computes the next times itself)."""
-        times = self.times
-        frac = self.clock.fraction(frac or "")
-        minute, base = self.minute
-        ss = int(clock[6:])
-        if f"{date} {clock[:5]}" != minute or ss >= 60:
-            try:
-                if ss >= 60:
-                    raise ValueError(clock)
-                base = wallclock(date, f"{clock[:5]}:00")
-            except ValueError:  # said as wallclock says it of the whole time
-                try:
-                    wallclock(date, f"{clock}.{frac}" if frac else clock)
-                except ValueError as exc:
-                    self.report.problem(self.src.where(number), f"{exc}; the bytes are kept with the "
-                                                                f"previous time")
-                return times.last
-            in_range = MIN_TIME <= base < MAX_TIME - 61
-            self.minute = (f"{date} {clock[:5]}", base) if in_range else ("", 0.0)
-        if frac:
-            digits = frac[:12]
-            t = base + ss + int(digits) / _POWERS[len(digits)]
-        else:
-            t = base + ss + 0.0
-        if not MIN_TIME <= t < MAX_TIME:
-            return times.check(t, self.src.where(number))  # said; the previous time
-        times.last = t
-        timeline = self.timeline
-        if t + TOLERANCE_S < timeline.last:
-            timeline.check(t, self.src.where(number))
-        else:
-            timeline.last = t
-        return t
-
     def end(self, number: int) -> Iterator[Chunk]:
+        """The file's end: the transfer being read ends (-v text that ``length=`` says is whole need not
+        end with a line end); a -v dump's loss noted."""
         cur = self.cur
         if cur is not None:
             self._rows_as_text(cur, whole=True)  # rows that are the text length= says is whole

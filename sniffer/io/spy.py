@@ -17,7 +17,7 @@ import re
 from collections.abc import Iterator
 from typing import Final
 
-from xac1_proto.chunk import Chunk
+from xac1_proto.chunk import Chunk, Direction
 
 from .base import Clock, Sides, Source, shown
 
@@ -31,6 +31,7 @@ _DATA: Final = re.compile(r"([0-9A-F]{4})  (.*)")
 _BYTE: Final = re.compile(r"[0-9A-F]{2}")
 _ANSI: Final = re.compile(r"\x1b\[[0-9;]*m")
 _HEX_AREA: Final = 16 * 3 + 1  # 16 "XX " cells and the gap after the 8th
+_SPILL: Final = 4096  # bytes of one read or write held before they are handed on
 _CONTROL: Final = frozenset({"RTS", "DTR", "BRK", "BREAK", "CTS", "DSR", "RI", "CD", "Q-RX", "Q-TX"})
 
 
@@ -41,53 +42,85 @@ def sniff(head: list[str]) -> int:
 
 
 def read(src: Source, host_is: str | None = None) -> Iterator[Chunk]:
+    """The chunks of a spy:// log: each TX/RX row's bytes (``_data_row``) added to the read or write they
+    belong to (``_Burst``)."""
     sides = Sides(FORMAT, host_is, ("TX", "RX"))
-    report = src.report
-    pending: Chunk | None = None
-    expect_offset = 0
-    clock = Clock(report)
+    clock = Clock(src.report)
+    burst = _Burst(src)
     for number, raw in src.lines():
-        line = _ANSI.sub("", raw)
-        if not line.strip():
+        row = _data_row(src, clock, number, raw)
+        if row is None:
             continue
-        m = _ROW.fullmatch(line)
-        if not m:
-            report.problem(src.where(number), f"not a spy row: {shown(line)}", nlines=1)
-            continue
-        label, value = m.group(2), m.group(3)
-        t = clock.check(float(m.group(1)), src.where(number))
-        if label not in ("TX", "RX"):
-            if label not in _CONTROL:
-                report.problem(src.where(number), f"unknown row label {shown(label)}", nlines=1)
-            continue
-        if value.strip() == "<empty>":
-            continue
-        dm = _DATA.fullmatch(value)
-        if not dm:
-            report.problem(src.where(number), f"{label} row without a hexdump: {shown(value)}", nlines=1)
-            continue
-        offset = int(dm.group(1), 16)
-        area = dm.group(2)[:_HEX_AREA]
-        cells = area.split()
-        if not cells or not all(_BYTE.fullmatch(c) for c in cells) or len(cells) > 16:
-            report.problem(src.where(number), f"bad hexdump cells: {shown(area.strip())}", nlines=1)
-            continue
-        data = bytes.fromhex("".join(cells))
+        t, label, offset, data = row
         d = sides.direction(label)
         assert d is not None
-        if offset == 0 or pending is None or pending.dir != d or offset != expect_offset:
-            if offset not in (0, expect_offset):
-                report.problem(src.where(number), f"hexdump offset {offset:04X}, expected "
-                                                  f"{expect_offset:04X}: rows are missing")
-            if pending is not None:
-                yield pending
-            pending = Chunk(t, d, data)
+        if (chunk := burst.add(number, t, d, offset, data)) is not None:
+            yield chunk
+    if burst.pending is not None and burst.pending.data:
+        yield burst.pending
+    src.report.note(f"{src.name}: spy:// times are seconds since the port was opened, not wall-clock")
+
+
+def _data_row(src: Source, clock: Clock, number: int,
+              raw: str) -> tuple[float | None, str, int, bytes] | None:
+    """(time, ``TX``/``RX``, hexdump offset, bytes) of a data row; None for any other line: a blank line,
+    a control-line row, a read that timed out (``<empty>``), or a line that does not read (reported)."""
+    line = _ANSI.sub("", raw)
+    if not line.strip():
+        return None
+    m = _ROW.fullmatch(line)
+    if not m:
+        src.report.problem(src.where(number), f"not a spy row: {shown(line)}", nlines=1)
+        return None
+    label, value = m.group(2), m.group(3)
+    t = clock.check(float(m.group(1)), src.where(number))
+    if label not in ("TX", "RX"):
+        if label not in _CONTROL:
+            src.report.problem(src.where(number), f"unknown row label {shown(label)}", nlines=1)
+        return None
+    if value.strip() == "<empty>":
+        return None
+    dump = _hexdump(label, value)
+    if isinstance(dump, str):
+        src.report.problem(src.where(number), dump, nlines=1)
+        return None
+    return (t, label, *dump)
+
+
+def _hexdump(label: str, value: str) -> tuple[int, bytes] | str:
+    """The offset and bytes of a ``label`` row's hexdump ``OOOO  XX XX .. ASCII``, or what is wrong."""
+    dm = _DATA.fullmatch(value)
+    if not dm:
+        return f"{label} row without a hexdump: {shown(value)}"
+    area = dm.group(2)[:_HEX_AREA]
+    cells = area.split()
+    if not cells or not all(_BYTE.fullmatch(c) for c in cells) or len(cells) > 16:
+        return f"bad hexdump cells: {shown(area.strip())}"
+    return int(dm.group(1), 16), bytes.fromhex("".join(cells))
+
+
+class _Burst:
+    """The read or write being assembled from its hexdump rows: a row at offset 0000, of the other
+    direction, or at another offset than the next expected (rows missing: reported) starts a new one;
+    a huge one is handed on in pieces (memory stays bounded)."""
+
+    def __init__(self, src: Source) -> None:
+        self.src = src
+        self.pending: Chunk | None = None
+        self.expect = 0  # the offset of the next row of the pending burst
+
+    def add(self, number: int, t: float | None, d: Direction, offset: int, data: bytes) -> Chunk | None:
+        """One row's bytes; the burst before it or a full piece, when one is done."""
+        pending, done = self.pending, None
+        if offset == 0 or pending is None or pending.dir != d or offset != self.expect:
+            if offset not in (0, self.expect):
+                self.src.report.problem(self.src.where(number), f"hexdump offset {offset:04X}, expected "
+                                                                f"{self.expect:04X}: rows are missing")
+            done, pending = pending, Chunk(t, d, data)
         else:
             pending = Chunk(pending.t, d, pending.data + data)
-        expect_offset = offset + 16
-        if len(pending.data) >= 4096:  # keep memory bounded on a huge single write
-            yield pending
-            pending = Chunk(t, d, b"")
-    if pending is not None and pending.data:
-        yield pending
-    report.note(f"{src.name}: spy:// times are seconds since the port was opened, not wall-clock")
+        self.expect = offset + 16
+        if len(pending.data) >= _SPILL:
+            done, pending = pending, Chunk(t, d, b"")
+        self.pending = pending
+        return done
