@@ -23,7 +23,8 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "xac1_proto"
 
 # The sans-IO core (docs/architecture.md "Layers"); the rulebook engine joins it once it exists.
-CORE = ["spec", "grammar", "frames", "codec", "framer", "motion", "chunk", "errors", "exchange", "replay"]
+CORE = ["spec", "grammar", "frames", "points", "codec", "framer", "motion", "chunk", "errors", "exchange",
+        "replay"]
 if (PACKAGE / "conversation.py").exists():
     CORE.append("conversation")
 

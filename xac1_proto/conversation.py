@@ -94,6 +94,7 @@ from .frames import (
     WriteOutputs,
     WritePoint,
 )
+from .points import PointData
 
 T = TypeVar("T")
 Status = Literal["unknown", "known", "learnt"]
@@ -122,19 +123,6 @@ class Fact(NamedTuple, Generic[T]):
     def judged(self) -> bool:
         """Is an answer compared with it (known or learnt)?"""
         return self.status != UNKNOWN
-
-
-@dataclass(frozen=True)
-class PointData:
-    """A point of the position table: V, A, O, Pos."""
-
-    v: int
-    a: int
-    o: int
-    pos: int
-
-    def show(self) -> str:
-        return f"V={self.v} A={self.a} O={self.o} Pos={self.pos:06X}"
 
 
 @dataclass
