@@ -182,6 +182,19 @@ def test_a_known_move_waits_its_motion_time_doubled_plus_the_timeout():
 
 
 @settings(max_examples=budget(50), deadline=None)
+@given(command=frames("command"), known=st.booleans())
+def test_a_command_that_is_no_move_waits_the_timeout(command, known):
+    """Only 0MP and 0MV answer after a move: any other command waits the turnaround timeout, whether the
+    position is known or not (regression: a 0RV waited for a homing over the whole stroke while the position
+    was unknown, so a device that went silent held a conformance run for an hour)."""
+    with taught(1000 if known else None, None) as c:
+        if command.header in spec.MOVE_HEADERS:
+            assert c.move_timeout(command) >= 0.2
+        else:
+            assert c.move_timeout(command) == 0.2
+
+
+@settings(max_examples=budget(50), deadline=None)
 @given(start=st.integers(0, STROKE_END), target=st.integers(0, STROKE_END), v=st.integers(1, 9),
        a=st.integers(1, 3))
 def test_an_unknown_point_never_waits_less_than_a_known_one(start, target, v, a):

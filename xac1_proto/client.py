@@ -146,8 +146,11 @@ class Client:
             self.conversation.rearm()
 
     def move_timeout(self, command: Frame) -> float:
-        """Seconds to wait for ``command``'s answer: the conversation's answer window for it (the timeout;
-        for 0MP/0MV the move's estimated time doubled on top, that share scaled by ``time_scale``)."""
+        """Seconds to wait for ``command``'s answer: the timeout; for a move (``spec.MOVE_HEADERS``) the
+        conversation's answer window, the move's estimated time doubled on top, that share scaled by
+        ``time_scale``. The moves are picked as the conversation picks the lines it gives a move's window."""
+        if command.header not in spec.MOVE_HEADERS:
+            return self.timeout
         window = self.conversation.answer_window(command)
         return self.timeout + self.time_scale * (window - self.timeout)
 
