@@ -13,6 +13,7 @@ How this works:
   otherwise. A test with its own budget writes ``@settings(max_examples=budget(N))``.
 - ``wait_until(predicate, timeout, what)`` replaces sleeping as synchronisation: it polls something the
   test can observe and fails saying what never happened.
+- The processes tests start cache their compiled modules, whatever ``PYTHONDONTWRITEBYTECODE`` says.
 - ``gallery`` is ``captures/make_gallery.py`` (the scripted session, the capture makers).
 - ``xac1(...)`` runs the console script's module as a user does (a real subprocess);
   ``conformance(...)`` runs ``xac1 conformance`` (``failed_checks``/``skipped_checks`` read its JUnit
@@ -48,6 +49,12 @@ from xac1_proto.client import Client
 
 ROOT = Path(__file__).resolve().parent.parent
 CAPTURES = ROOT / "captures"
+
+# Every process a test starts (xac1, pytest, the conformance suite) runs as an installed tool does, its
+# compiled modules cached: where the environment forbids writing them (PYTHONDONTWRITEBYTECODE), each of
+# the suite's hundreds of children would compile the package and have pytest rewrite the asserts of every
+# plugin's modules (hypothesis, anyio, xdist) again, doubling the CPU time of a conformance run.
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
 
 def _load_gallery() -> ModuleType:

@@ -13,6 +13,7 @@ import pytest
 import serial
 from conftest import wait_until
 
+from sniffer.analyzer import Analyzer
 from xac1_proto import (
     AlarmError,
     Client,
@@ -22,6 +23,7 @@ from xac1_proto import (
     spec,
 )
 from xac1_proto import frames as fr
+from xac1_proto.chunk import Chunk
 from xac1_proto.sim import LineFaults, SimConfig, serve_pty
 
 
@@ -213,15 +215,51 @@ def test_everything_dropped_is_a_timeout():
         assert c.read_version().version == "100"
 
 
-@pytest.mark.slow
+@pytest.mark.slow  # a real-time move: seconds
 def test_long_move_at_real_time_does_not_time_out():
     """0MP/0MV answer only after the move: a move of about a second at real time (time scale 1) is
-    waited for with a timeout priced from the motion model, far above the 0.2 s turnaround timeout."""
-    with connect("pty", SimConfig(time_scale=1.0), timeout=0.2, move_margin=0.3) as (c, _):
-        c.home()  # homing from an unknown position (the sim's 10,000 pulses): about 1.2 s
+    waited for with the rulebook's window (the move's estimated time doubled on top of the timeout; the
+    position known from the homing answer), far above the 0.2 s turnaround timeout."""
+    with connect("pty", SimConfig(time_scale=1.0), timeout=0.2) as (c, _):
+        c.home()  # homing from the sim's 10,000 pulses: about 1.2 s
         command = fr.MoveDirect(vel=10, a=3, pos=5000)  # 5000 pulses at 5000 pulses/s: 1.1 s
-        assert 1.0 < c.move_timeout(command) - 0.2 - 0.3 < 1.2
+        assert c.move_timeout(command) == c.conversation.answer_window(command) > 0.2 + 1.1  # the move fits
         assert c.move_direct(10, 3, 5000).pos == 5000
+
+
+def sniffed_windows(traffic: list[Chunk], commands: list[fr.Frame]) -> list[float]:
+    """The answer window a sniffer's own rulebook, fed the traffic a client saw, gives each command next."""
+    analyzer = Analyzer(no_answer_timeout=0.2)
+    analyzer.feed_many(iter(traffic), limit=len(traffic) + 1)
+    return [analyzer.conversation.answer_window(cmd) for cmd in commands]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_wait_is_the_rulebooks_after_an_emergency_stop_and_for_an_unknown_point(kind):
+    """The client waits for a move exactly the answer window a sniffer watching the same line gives it (one
+    move-timing model, the rulebook's): before and after an emergency stop, after its release, and for a
+    point never read or written, which waits longer than one the answers told."""
+    traffic: list[Chunk] = []
+    record = lambda d, data, t: traffic.append(Chunk(t, "host" if d == "host" else "device", data))  # noqa: E731
+    moves = [fr.MovePoint(n=1), fr.MovePoint(n=5), fr.MovePoint(n=0), fr.MoveDirect(vel=10, a=3, pos=5000)]
+    with connect(kind, timeout=0.2, time_scale=1.0, on_traffic=record) as (c, device):
+        c.home()
+        c.write_point(1, 9, 3, 0, 0x2000)
+        c.move_point(1)
+        waits = {"homed": [c.move_timeout(m) for m in moves]}
+        assert waits["homed"] == sniffed_windows(traffic, moves)
+        assert waits["homed"][1] > waits["homed"][0]  # point 5 unknown: priced at its worst
+        device.inject(lambda m, t: m.set_estop(True, t))
+        with pytest.raises(AlarmError):
+            c.read_current()
+        waits["stopped"] = [c.move_timeout(m) for m in moves]
+        assert waits["stopped"] == sniffed_windows(traffic, moves)
+        device.inject(lambda m, t: m.set_estop(False, t))
+        c.reset_alarm()
+        waits["released"] = [c.move_timeout(m) for m in moves]
+        assert waits["released"] == sniffed_windows(traffic, moves)
+        assert waits["released"][0] > waits["homed"][0]  # the position is no longer known
+        assert c.position is None
 
 
 def test_protocol_errors_raise_with_code_and_raw():

@@ -1,5 +1,5 @@
-"""The client's judgement (its own conversation engine), its storm guard and move budgets; the client on
-pyserial's loop:// port where a real port helps (what it sends comes back as the answer)."""
+"""The client's judgement (its own conversation engine), its storm guard and how long it waits for a move;
+the client on pyserial's loop:// port where a real port helps (what it sends comes back as the answer)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,6 @@ from xac1_proto import AlarmError, Client, CommunicationHalted, ProtocolError, m
 from xac1_proto import frames as fr
 from xac1_proto.conversation import Conversation
 from xac1_proto.exchange import Exchange, answer_or_raise
-from xac1_proto.movewait import FULL_STROKE, MoveBudget
 
 VENDOR = [  # docs/protocol.md "Frames": vendor examples (command, answer)
     (b"0RP3\r\n", b"0RP39302012345\r\n"),
@@ -154,39 +153,70 @@ def test_default_timeout_is_the_projects_one():
         assert c.timeout == spec.NO_ANSWER_TIMEOUT_S
 
 
-def test_budget_known_move_is_motion_time():
-    """After an answer told the position, a direct move costs motion.move_time from there."""
-    budget = MoveBudget()
-    budget.observe(fr.MovePoint(n=0), fr.MovePointAnswer(n=0, v=0, a=0, o=0, pos=0), clean=True)
-    cmd = fr.MoveDirect(vel=30, a=2, pos=5000)
-    assert budget.estimate(cmd) == motion.move_time(5000, motion.DEFAULT_SPEEDS.direct_speed(30), 2)
-    assert budget.estimate(fr.ReadVersion()) is None
+STROKE_END = spec.UNKNOWN_POSITION - 1  # the farthest position a move can reach (silent item 5)
 
 
-@settings(max_examples=budget(100), deadline=None)
-@given(start=st.integers(0, FULL_STROKE), target=st.integers(0, FULL_STROKE), v=st.integers(1, 9),
+def taught(start: int | None, point: tuple[int, int, int] | None, time_scale: float = 1.0) -> Client:
+    """A client on loop:// that learnt from echoed answers: the axis at ``start`` (an 0MV to it; None: never
+    moved) and point 1 as ``(v, a, pos)`` (an 0WP; None: never seen)."""
+    c = Client("loop://", timeout=0.2, drain_quiet=0.01, time_scale=time_scale)
+    if start is not None:
+        c.transact(fr.MoveDirect(vel=1, a=1, pos=start).to_bytes())
+    if point is not None:
+        v, a, pos = point
+        c.transact(fr.WritePoint(n=1, v=v, a=a, o=0, pos=pos).to_bytes())
+    return c
+
+
+def test_a_known_move_waits_its_motion_time_doubled_plus_the_timeout():
+    """Once an answer told the position, a direct move waits the timeout plus its motion time (priced by
+    ``motion.move_time``) doubled, the rulebook's answer window (docs/protocol.md silent item 17); a command
+    that is no move waits the timeout."""
+    with taught(0, None) as c:
+        cmd = fr.MoveDirect(vel=30, a=2, pos=5000)
+        assert c.position == 0
+        assert c.move_timeout(cmd) == pytest.approx(
+            0.2 + 2 * motion.move_time(5000, motion.DEFAULT_SPEEDS.direct_speed(30), 2))
+        assert c.move_timeout(cmd) == c.conversation.answer_window(cmd)
+        assert c.move_timeout(fr.ReadVersion()) == 0.2
+
+
+@settings(max_examples=budget(50), deadline=None)
+@given(command=frames("command"), known=st.booleans())
+def test_a_command_that_is_no_move_waits_the_timeout(command, known):
+    """Only 0MP and 0MV answer after a move: any other command waits the turnaround timeout, whether the
+    position is known or not (regression: a 0RV waited for a homing over the whole stroke while the position
+    was unknown, so a device that went silent held a conformance run for an hour)."""
+    with taught(1000 if known else None, None) as c:
+        if command.header in spec.MOVE_HEADERS:
+            assert c.move_timeout(command) >= 0.2
+        else:
+            assert c.move_timeout(command) == 0.2
+
+
+@settings(max_examples=budget(50), deadline=None)
+@given(start=st.integers(0, STROKE_END), target=st.integers(0, STROKE_END), v=st.integers(1, 9),
        a=st.integers(1, 3))
-def test_budget_unknown_is_never_less_than_known(start, target, v, a):
-    """Unknown position or point data is priced at the worst case: never below the true move."""
-    known = MoveBudget()
-    known.observe(fr.MoveDirect(vel=1, a=1, pos=start),
-                  fr.MoveDirectAnswer(vel=1, a=1, pos=start), clean=True)
-    known.observe(fr.ReadPoint(n=1), fr.ReadPointAnswer(n=1, v=v, a=a, o=0, pos=target), clean=True)
-    true = known.estimate(fr.MovePoint(n=1))
-    unknown_pos = MoveBudget()
-    unknown_pos.observe(fr.ReadPoint(n=1), fr.ReadPointAnswer(n=1, v=v, a=a, o=0, pos=target), clean=True)
-    assert unknown_pos.estimate(fr.MovePoint(n=1)) >= true
-    assert MoveBudget().estimate(fr.MovePoint(n=1)) >= true
+def test_an_unknown_point_never_waits_less_than_a_known_one(start, target, v, a):
+    """A point the client has not seen it prices at its worst: the wait for 0MP to it is never below the
+    wait for the same point known, which covers the true move (docs/protocol.md silent item 17)."""
+    move = fr.MovePoint(n=1)
+    with taught(start, (v, a, target)) as known, taught(start, None) as unknown:
+        true = known.move_timeout(move)
+        assert true >= 0.2 + motion.move_time(abs(target - start), motion.DEFAULT_SPEEDS.point_speed(v), a)
+        assert unknown.move_timeout(move) >= true
 
 
-def test_budget_forgets_after_alarm_and_estop():
-    """A move without a clean answer leaves the position unknown; emergency stop unhomes the axis."""
-    budget = MoveBudget()
-    budget.observe(fr.MovePoint(n=0), fr.MovePointAnswer(n=0, v=0, a=0, o=0, pos=0), clean=True)
-    budget.observe(fr.MoveDirect(vel=1, a=1, pos=10), fr.AlarmAnswer(code=9), clean=True)
-    assert budget.position is None and budget.homed
-    budget.observe(fr.ReadVersion(), fr.AlarmAnswer(code=spec.ALARM_ESTOP), clean=True)
-    assert budget.homed is False
+@pytest.mark.parametrize("time_scale", [0.0, 0.01, 0.5, 1.0])
+def test_time_scale_scales_the_moves_share_of_the_window(time_scale):
+    """``time_scale`` (a simulator run faster than real time) scales the move's share of the rulebook's
+    window and never the turnaround timeout: 0 waits the timeout alone, 1 the whole window."""
+    with taught(1000, (5, 2, 90000), time_scale) as c:
+        for cmd in (fr.MovePoint(n=1), fr.MovePoint(n=0), fr.MovePoint(n=2),
+                    fr.MoveDirect(vel=3, a=1, pos=7)):
+            window = c.conversation.answer_window(cmd)
+            assert window > 0.2
+            assert c.move_timeout(cmd) == pytest.approx(0.2 + time_scale * (window - 0.2))
 
 
 def test_malformed_move_gets_the_plain_timeout():

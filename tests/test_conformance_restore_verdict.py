@@ -25,8 +25,8 @@ def _report(**kw) -> Report:
 def test_a_failed_restore_is_in_the_verdict_line():
     """A device that ignores the point writes of the restore: DOES NOT CONFORM, exit 1, and the verdict
     line says the restore failed and what (docs/protocol.md: the suite leaves a device as it found it)."""
-    rep = _report(safety_problems=["point 3: wrote back V=5 A=2 O=1 Pos=0x000400 but it reads V=0 A=0 O=0 "
-                                   "Pos=0x000000"], restore_failed=["point 3"])
+    rep = _report(safety_problems=["point 3: wrote back V=5 A=2 O=1 Pos=000400 but it reads V=0 A=0 O=0 "
+                                   "Pos=000000"], restore_failed=["point 3"])
     assert rep.head == "DOES NOT CONFORM" and rep.exit_status() == 1
     assert rep.verdict_line.endswith("; THE RESTORE FAILED (point 3; see the safety section)")
 

@@ -146,7 +146,7 @@ def test_device_stops_answering_mid_run(device, tmp_path):
     assert "| alarm_latched[0MP] |" in text and "**PASS**" in text  # verdicts given before the silence
     safety = text.split("## Safety")[1]
     assert f"**NOT RESTORED:** the restore could not be done or verified: {STOPPED}" in safety
-    assert "not verified: point 3, written during the run; it held V=5 A=2 O=1 Pos=0x000400 before" in safety
+    assert "not verified: point 3, written during the run; it held V=5 A=2 O=1 Pos=000400 before" in safety
     assert "not verified: the axis position, moved during the run" in safety
     assert "restored to" not in safety and "unchanged" not in safety
     assert read_table(url).points[3] != HELD[3]  # and indeed: the device was left as the run left it
@@ -170,5 +170,5 @@ def test_device_comes_back_before_the_end(device, tmp_path):
     page = report.read_text()
     assert "THE DEVICE STOPPED ANSWERING" in page and "interrupted: the run stopped during this check" in page
     safety = page.split("<h2>Safety</h2>")[1]
-    assert "point 3 restored to V=5 A=2 O=1 Pos=0x000400" in safety and "NOT RESTORED" not in safety
+    assert "point 3 restored to V=5 A=2 O=1 Pos=000400" in safety and "NOT RESTORED" not in safety
     assert "PROBLEM" not in safety

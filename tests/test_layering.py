@@ -7,6 +7,7 @@ because this test process has long since imported everything.
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import json
 import re
@@ -23,7 +24,8 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "xac1_proto"
 
 # The sans-IO core (docs/architecture.md "Layers"); the rulebook engine joins it once it exists.
-CORE = ["spec", "grammar", "frames", "codec", "framer", "motion", "chunk", "errors", "exchange", "replay"]
+CORE = ["spec", "grammar", "frames", "points", "codec", "framer", "motion", "chunk", "errors", "exchange",
+        "replay"]
 if (PACKAGE / "conversation.py").exists():
     CORE += ["conversation", "latch", "waiting", "sentences"]
 
@@ -32,6 +34,12 @@ FORBIDDEN_ROOTS = {"serial", "socket", "threading", "select", "selectors", "subp
                    "sniffer", "conformance"}
 FORBIDDEN_OWN = {"xac1_proto.client", "xac1_proto.urlhandler", "xac1_proto.sim", "xac1_proto.cli"}
 CLOCK_MODULES = {"time", "datetime"}
+
+
+@functools.cache
+def parsed(path: Path) -> ast.Module:
+    """A source file's syntax tree, parsed once a test session (several checks read every module)."""
+    return ast.parse(path.read_text(encoding="utf-8"))
 
 
 def fresh(code: str) -> dict:
@@ -79,7 +87,7 @@ def test_forbidden_check_catches_a_shell():
 def test_core_source_imports_no_clock(name):
     """A core module takes time as an argument: its source imports neither ``time`` nor ``datetime``
     (both are always loaded by the interpreter, so only the source can tell)."""
-    tree = ast.parse((PACKAGE / f"{name}.py").read_text(encoding="utf-8"))
+    tree = parsed(PACKAGE / f"{name}.py")
     imported = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -93,7 +101,7 @@ def test_package_never_imports_a_shell_above_it():
     """No module of xac1_proto imports sniffer or conformance (the dispatcher names them as strings)."""
     offenders = []
     for path in sorted(PACKAGE.rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(parsed(path)):
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
             offenders += [f"{path.relative_to(ROOT)}:{node.lineno} imports {n}" for n in names
@@ -210,9 +218,11 @@ def dynamic_import(node: ast.AST) -> str | None:
     return None
 
 
+@functools.cache
 def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
     """Module -> the project's modules it imports, at module level or inside a function, by an import
-    statement or by ``importlib.import_module``/``__import__`` of a literal name."""
+    statement or by ``importlib.import_module``/``__import__`` of a literal name (made once a session:
+    the checks only read it)."""
     files = {}
     for pkg in PACKAGES:
         for path in (root / pkg).rglob("*.py"):
@@ -222,7 +232,7 @@ def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
     for module, path in files.items():
         package = module if path.name == "__init__.py" else module.rpartition(".")[0]
         deps: set[str] = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(parsed(path)):
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import errno
 import os
 import signal
+import stat
 import subprocess
 import sys
 import threading
@@ -59,11 +60,13 @@ def opening(path: Path, make: Callable[[Path], object]) -> BaseException | objec
 @pytest.mark.parametrize("kind", WRITERS)
 def test_dev_null_is_written_without_syncing(kind: str) -> None:
     """A recording onto /dev/null takes chunks and closes without error (was: ``os.fsync`` EINVAL, a
-    traceback and exit 1 for ``--record /dev/null``; the simulator's log died at its first byte)."""
+    traceback and exit 1 for ``--record /dev/null``; the simulator's log died at its first byte), written
+    in place: /dev/null is still the character device afterwards, never replaced by a file."""
     writer = WRITERS[kind](Path(os.devnull))
     for k in range(3):
         writer.write(Chunk(1000.0 + k, "host", b"0RV\r\n"))  # type: ignore[attr-defined]
     writer.close()  # type: ignore[attr-defined]
+    assert stat.S_ISCHR(os.stat(os.devnull).st_mode)
 
 
 @pytest.mark.parametrize("kind", WRITERS)

@@ -137,7 +137,8 @@ def test_device_port_swaps_while_the_host_writes():
         time.sleep(0.02)
     stop.set()
     runner.join(5)
-    assert not runner.is_alive() and not proxy._reader.is_alive()
+    assert not runner.is_alive()
+    assert [t for t in threading.enumerate() if t.name == "xac1-proxy-device"] == []  # its reader ended too
     assert proxy.device is None
     assert "Traceback" not in err.getvalue()
     session.close(clock.now())

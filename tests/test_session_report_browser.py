@@ -208,7 +208,7 @@ def test_live_sniffer_session_report_in_chromium(browser, tmp_path):
             Cli("sniff", "--host-tap", cable.tap_paths["host"], "--device-tap", cable.tap_paths["device"],
                 "--format", "jsonl", "--report", str(out)) as cli:
         cli.wait_err("Ctrl-C to stop")
-        with Client(cable.host_path, time_scale=0.02, stroke=0x20000) as client:
+        with Client(cable.host_path, time_scale=0.02) as client:
             client.read_version()
             client.transact(b"ORV\r\n")  # letter O: alarm 01 answers
             client.reset_alarm()

@@ -2,9 +2,10 @@
 
 A thin I/O shell around sans-IO parts: ``Framer`` cuts the answer out of the byte stream, the client's
 own ``conversation.Conversation`` (the one rulebook the sniffer and the conformance suite use too) judges
-each exchange and keeps the host's duty to stop after communication errors in a row, and
-``movewait.MoveBudget`` prices the timeout of a move (docs/protocol.md "Behaviour the vendor text
-states").
+each exchange, keeps the host's duty to stop after communication errors in a row and prices how long
+to wait for an answer: a move's window is the one the rulebook gives it (docs/protocol.md "Behaviour the
+vendor text states": 0MP and 0MV answer when the move has ended; silent item 17), so the client waits
+exactly as long as the sniffer and the conformance suite would judge the answer in time.
 
 An exchange: bytes already waiting are read and reported as ``stale`` (a late answer to an earlier
 exchange must not pass for this one's); the command is written; bytes are read until the framer
@@ -54,7 +55,6 @@ from .frames import (
     WritePoint,
     WritePointAnswer,
 )
-from .movewait import FULL_STROKE, MoveBudget
 
 TrafficHook = Callable[[str, bytes, float], None]
 A = TypeVar("A", bound=Frame)
@@ -86,9 +86,10 @@ class Client:
     ``serial.Serial`` (set to 9600 8N1; left open by ``close()``).
 
     ``timeout``: turnaround timeout in seconds for immediate commands (default: the project's one
-    answer-timeout, ``spec.NO_ANSWER_TIMEOUT_S``). Moves (0MP, 0MV) wait
-    ``timeout + time_scale * estimated move time + move_margin`` (see ``movewait``); ``stroke``
-    bounds the worst case when the position or a point is unknown. ``storm_limit``: communication-error
+    answer-timeout, ``spec.NO_ANSWER_TIMEOUT_S``). Moves (0MP, 0MV) wait the conversation's answer
+    window (``move_timeout``): the timeout plus the move's estimated time doubled, priced from ``speeds``
+    and what the answers told, the unknown at its worst; ``time_scale`` scales the move's share, for a
+    simulator run faster than real time. ``storm_limit``: communication-error
     answers in a row after which nothing is sent until ``rearm()`` (None: never halt).
     ``on_traffic(direction, data, t)`` sees every byte sent ("host") and received ("device"), ``t``
     from ``clock`` (default ``time.monotonic``). ``drain_quiet``: after a timeout, late bytes are read
@@ -97,18 +98,16 @@ class Client:
 
     def __init__(self, port: str | serial.Serial, *, timeout: float = spec.NO_ANSWER_TIMEOUT_S,
                  storm_limit: int | None = spec.STORM_LIMIT,
-                 speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS, move_margin: float = 2.0,
-                 on_traffic: TrafficHook | None = None, time_scale: float = 1.0,
-                 stroke: int = FULL_STROKE, drain_quiet: float = 0.05,
+                 speeds: motion.SpeedTable = motion.DEFAULT_SPEEDS,
+                 on_traffic: TrafficHook | None = None, time_scale: float = 1.0, drain_quiet: float = 0.05,
                  clock: Callable[[], float] = time.monotonic,
                  readings: rules.Readings = rules.DEFAULT_READINGS) -> None:
-        if timeout <= 0 or time_scale < 0 or move_margin < 0 or drain_quiet < 0:
-            raise ValueError("timeout must be > 0; time_scale, move_margin and drain_quiet >= 0")
+        if timeout <= 0 or time_scale < 0 or drain_quiet < 0:
+            raise ValueError("timeout must be > 0; time_scale and drain_quiet >= 0")
         if storm_limit is not None and storm_limit < 1:
             raise ValueError(f"storm_limit must be a positive count or None, got {storm_limit}")
         self.timeout = timeout
         self.time_scale = time_scale
-        self.move_margin = move_margin
         self.drain_quiet = drain_quiet
         self.on_traffic = on_traffic
         self.clock = clock
@@ -116,7 +115,6 @@ class Client:
         self.conversation = Conversation(no_answer_timeout=timeout,
                                          storm_limit=storm_limit or spec.STORM_LIMIT, speeds=speeds,
                                          readings=readings)
-        self._budget = MoveBudget(speeds, stroke)
         self._read_t = 0.0
         self._lock = threading.RLock()
         self._serial, self._owned = open_port(port)
@@ -139,8 +137,8 @@ class Client:
 
     @property
     def position(self) -> int | None:
-        """The last position an answer told (None: unknown)."""
-        return self._budget.position
+        """The axis position as the conversation knows it from the answers (None: unknown)."""
+        return self.conversation.knowledge.position.value
 
     def rearm(self) -> None:
         """Allow sending again after a communication-error storm (have the equipment checked first)."""
@@ -148,11 +146,13 @@ class Client:
             self.conversation.rearm()
 
     def move_timeout(self, command: Frame) -> float:
-        """Seconds to wait for ``command``'s answer: the turnaround timeout, plus the move for 0MP/0MV."""
-        estimate = self._budget.estimate(command)
-        if estimate is None:
+        """Seconds to wait for ``command``'s answer: the timeout; for a move (``spec.MOVE_HEADERS``) the
+        conversation's answer window, the move's estimated time doubled on top, that share scaled by
+        ``time_scale``. The moves are picked as the conversation picks the lines it gives a move's window."""
+        if command.header not in spec.MOVE_HEADERS:
             return self.timeout
-        return self.timeout + self.time_scale * estimate + self.move_margin
+        window = self.conversation.answer_window(command)
+        return self.timeout + self.time_scale * (window - self.timeout)
 
     # ---- exchanges ----
 
@@ -192,7 +192,6 @@ class Client:
             if answer is None:
                 self._judge(spec.DEVICE_SIDE, junk, None)
                 self.conversation.host_gave_up(self.clock())
-                self._budget.observe(command, None, clean=False)
                 late = self._drain()
                 what = f"{show_bytes(received)} (no complete frame)" if received else "nothing"
                 raise ResponseTimeout(
@@ -208,7 +207,6 @@ class Client:
             exchange = Exchange(sent=raw, raw=answer.raw, frame=frame, violations=violations,
                                 latency=None if answer.t_first is None else answer.t_first - t_sent,
                                 junk=junk + after, stale=stale, t_sent=t_sent)
-            self._budget.observe(command, frame, not exchange.errors)
             return exchange
 
     def _judge(self, sender: str, data: bytes, t: float | None, window: float | None = None) -> list[Verdict]:

@@ -42,11 +42,11 @@ Knowledge changes only on a clean exchange (a decoded, rule-abiding answer to a 
 command reads and writes of it is the ``learn`` column of its row of ``HEADER_RULES``): a command
 refused with an alarm takes no effect (silent item 18); a garbled, missing or faulty answer makes what
 the command would have changed unknown (the row's ``forget`` column). What docs/protocol.md leaves
-open is never judged: it becomes
-``unknown`` and is learnt from the next answer (the alarm code of an error, item 1; the OUT ports after
-0MP N and 0RC's O, item 8; the position after homing, item 7; 0WC's V, A, O, item 4; what the axis does
-after the stop input is released, item 3, unless the caller says; the OUT ports, the position and homing
-after 0CM0, which hands the controller to the external I/O, item 11).
+open is never judged: it becomes ``unknown`` and is learnt from the next answer (the alarm code of an
+error, item 1; the OUT ports after 0MP N and 0RC's O, item 8; the position after homing, item 7, is the
+Pos the homing answer states; 0WC's V, A, O, item 4; what the axis does after the stop input is
+released, item 3, unless the caller says; the OUT ports, the position and homing after 0CM0, which
+hands the controller to the external I/O, item 11).
 """
 
 from __future__ import annotations
@@ -66,7 +66,6 @@ from .frames import (
     Frame,
     MoveDirect,
     MovePoint,
-    PointAnswer,
     ReadCurrent,
     ReadCurrentAnswer,
     ReadOutputs,
@@ -80,6 +79,7 @@ from .frames import (
     WritePoint,
 )
 from .latch import ALARM_EVENTS, HOST_DUTY, LATCH, Effect, LatchEvent, LatchState, StormState
+from .points import PointData
 from .waiting import COMMAND, DISCARD, ERROR, Waiting, WaitingLine
 
 T = TypeVar("T")
@@ -108,19 +108,6 @@ class Fact(NamedTuple, Generic[T]):
     def judged(self) -> bool:
         """Is an answer compared with it (known or learnt)?"""
         return self.status != UNKNOWN
-
-
-@dataclass(frozen=True)
-class PointData:
-    """A point of the position table: V, A, O, Pos."""
-
-    v: int
-    a: int
-    o: int
-    pos: int
-
-    def show(self) -> str:
-        return f"V={self.v} A={self.a} O={self.o} Pos={self.pos:06X}"
 
 
 @dataclass
@@ -923,7 +910,10 @@ class Conversation:
         assert isinstance(c, MovePoint)
         k.homed = _HOMED
         point = k.point(c.n)
-        k.position = Fact(point.value.pos, point.status) if c.n and point.value is not None else _NOT_KNOWN
+        if c.n and point.value is not None:
+            k.position = Fact(point.value.pos, point.status)
+        else:  # homing, or a point not known: where the answer says the axis is (item 7), learnt
+            k.position = Fact(a.pos, LEARNT)  # type: ignore[attr-defined]
         if c.n:
             k.outputs = _NOT_KNOWN  # silent item 8
 
@@ -1015,25 +1005,44 @@ class Conversation:
 
     def move_time(self, command: Frame) -> float:
         """Seconds a move (0MP/0MV) may take at worst, homing included; 0 for other commands. Whatever is
-        unknown is taken at its worst: an unknown start homes from the far end of the stroke first, an
-        unknown point is as far away as the stroke allows at the slowest speed."""
-        s, k = self.speeds, self.knowledge
-        start = k.position.value if k.homed.value is not False else None
-        t = 0.0
-        if start is None:
-            t += motion.move_time(STROKE_END, s.homing_pps, s.homing_accel)
-            start = 0
+        unknown is taken at its worst: an axis not homed homes from the far end of the stroke first; a
+        homed axis at an unknown position starts as far from the target as the stroke allows; an unknown
+        homing is the worse of the two; an unknown point is as far away as the stroke allows at the
+        slowest speed."""
+        leg = self._leg(command)
+        if leg is None:
+            return 0.0
+        target, pps, accel = leg
+        k, s = self.knowledge, self.speeds
+        homed = k.homed.value
+        if homed is not False and k.position.value is not None:
+            start = k.position.value
+            return motion.move_time(_far_from(start) if target is None else target - start, pps, accel)
+        homing = motion.move_time(STROKE_END, s.homing_pps, s.homing_accel)
+        via_home = homing + motion.move_time(STROKE_END if target is None else target, pps, accel)
+        if homed is False:
+            return via_home
+        from_anywhere = motion.move_time(STROKE_END if target is None else _far_from(target), pps, accel)
+        return from_anywhere if homed is True else max(via_home, from_anywhere)
+
+    def _leg(self, command: Frame) -> tuple[int | None, float, int] | None:
+        """A move's target (None: an unknown point), speed and acceleration; None for other commands."""
+        s = self.speeds
         if isinstance(command, MoveDirect):
-            return t + motion.move_time(command.pos - start, s.direct_speed(command.vel), command.a)
-        if isinstance(command, MovePoint):
-            if command.n == 0:
-                return t + motion.move_time(start, s.homing_pps, s.homing_accel)
-            point = k.point(command.n).value
-            if point is None:
-                far = max(start, STROKE_END - start)
-                return t + motion.move_time(far, s.point_speed(1), 1)
-            return t + motion.move_time(point.pos - start, s.point_speed(point.v), point.a)
-        return t
+            return command.pos, s.direct_speed(command.vel), command.a
+        if not isinstance(command, MovePoint):
+            return None
+        if command.n == 0:
+            return 0, s.homing_pps, s.homing_accel
+        point = self.knowledge.point(command.n).value
+        if point is None:
+            return None, s.point_speed(1), 1
+        return point.pos, s.point_speed(point.v), point.a
+
+
+def _far_from(pos: int) -> int:
+    """The longest distance a move from (or to) ``pos`` can cover within the stroke."""
+    return max(pos, STROKE_END - pos)
 
 
 _MODE_1: Final = Fact(1, KNOWN)
@@ -1168,13 +1177,6 @@ HEADER_RULES: Final[dict[str, HeaderRules]] = {
 }
 assert set(HEADER_RULES) == {fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND}, \
     "every command header has its row"
-
-
-def point_of(answer: Frame) -> PointData | None:
-    """The point data an answer carries (0RP, 0WP, 0WC, 0MP answers), else None."""
-    if isinstance(answer, PointAnswer):
-        return PointData(answer.v, answer.a, answer.o, answer.pos)
-    return None
 
 
 __all__ = ["HEADER_RULES", "Conversation", "Fact", "HeaderRules", "Knowledge", "PointData", "Verdict",

@@ -35,6 +35,7 @@ from xac1_proto.frames import (
     WriteOutputs,
     WritePoint,
 )
+from xac1_proto.points import PointData
 
 from .device import DeviceAbort, DeviceUnderTest, MotionRefused, PortLost, StoppedAnswering
 from .evidence import Probe, describe_answer
@@ -46,23 +47,6 @@ RESTORE_A = spec.FIELDS["a"].command_range[0]
 MODE_NOTE = ("The controller is left in mode 1 (communication: external I/O disabled), as after any host "
              "session. The suite does not send 0CM0 on its own: that would enable the external I/O start "
              "inputs again without the operator's consent")
-
-
-@dataclass(frozen=True)
-class PointData:
-    v: int
-    a: int
-    o: int
-    pos: int
-
-    @property
-    def restorable(self) -> bool:
-        """0WP can write these values back (its V and A ranges exclude the answers' 0)."""
-        fs = WritePoint.frame_spec()
-        return all(fs.field_range(k)[0] <= getattr(self, k) <= fs.field_range(k)[1] for k in ("v", "a", "o"))
-
-    def show(self) -> str:
-        return f"V={self.v} A={self.a} O={self.o} Pos=0x{self.pos:06X}"
 
 
 @dataclass
@@ -129,8 +113,7 @@ def _read_point(dut: DeviceUnderTest, n: int) -> PointData:
     p = _ask(dut, ReadPoint(n=n))
     if not isinstance(p.frame, ReadPointAnswer):  # data that decodes is kept, even from a flawed answer
         raise DeviceAbort(f"cannot read point {n:X}: {describe_answer(p)} ({p.show()}){_late(dut, p)}")
-    f = p.frame
-    return PointData(f.v, f.a, f.o, f.pos)
+    return PointData.of(p.frame)
 
 
 def _read_outputs(dut: DeviceUnderTest) -> int:

@@ -38,6 +38,7 @@ from .. import motion, spec
 from ..codec import diagnose, parse
 from ..errors import FrameError
 from ..framer import MAX_FRAME
+from ..points import PointData
 from .config import DEVIATIONS, LATE_AFTER_ERRORS_S, ROBUSTNESS, LineFaults, SimConfig
 from .deviations import spoil
 from .outbox import Outbox, Output
@@ -46,16 +47,6 @@ MAX_LINE: Final = MAX_FRAME  # longer lines are kept truncated: they are malform
 MOVE_FAULTS: Final = frozenset({spec.ALARM_LIMIT, spec.ALARM_HOMING, spec.ALARM_PULSE})
 MEMORY_FAULTS: Final = frozenset({spec.ALARM_MEMORY_RW, spec.ALARM_MEMORY_DATA})
 RAISABLE: Final = frozenset(c for c in spec.ALARMS if c != spec.ALARM_NONE)
-
-
-@dataclass(frozen=True, slots=True)
-class PointData:
-    """One written entry of the position table."""
-
-    v: int
-    a: int
-    o: int
-    pos: int
 
 
 @dataclass(frozen=True, slots=True)
