@@ -163,7 +163,10 @@ class JsonLines:
 
     def extend(self, records: Iterable[Record], out: list[str]) -> None:
         """Each record's ``line``, appended to ``out``."""
-        out.extend(map(self.line, records))
+        frame_line, append = self.frame_line, out.append
+        for record in records:
+            made = frame_line(record) if type(record) is FrameRecord else None
+            append(json_line(record) if made is None else made)
 
     def frame_line(self, record: FrameRecord) -> str | None:
         """A frame record's line from its numbers around its middle (made once per distinct frame); None
@@ -182,11 +185,24 @@ class JsonLines:
                 return None
             judged, notes = noted
             shown = shown[:_UNJUDGED] + judged
+        if type(t) is float and 0.001 <= t < _T_MAX:  # json_t(t) without its call (the usual time)
+            shown_t = f"{t:.6f}".rstrip("0")
+            if shown_t[-1] == ".":
+                shown_t += "0"
+        else:
+            shown_t = json_t(t)
         if direction != "device":
-            return f'{{"type":"frame","i":{i},"t":{json_t(t)},{shown}{notes}}}\n'
+            return f'{{"type":"frame","i":{i},"t":{shown_t},{shown}{notes}}}\n'
+        ms = latency * 1000.0 if type(latency) is float else None
+        if ms is not None and 0.001 <= ms < _MS_MAX:  # json_ms(latency) without its call
+            shown_ms = f"{ms:.3f}".rstrip("0")
+            if shown_ms[-1] == ".":
+                shown_ms += "0"
+        else:
+            shown_ms = json_ms(latency)
         shown_reply = reply_to if type(reply_to) is int else json_number(reply_to)
-        return (f'{{"type":"frame","i":{i},"t":{json_t(t)},{shown},"reply_to":{shown_reply},'
-                f'"latency_ms":{json_ms(latency)}{notes}}}\n')
+        return (f'{{"type":"frame","i":{i},"t":{shown_t},{shown},"reply_to":{shown_reply},'
+                f'"latency_ms":{shown_ms}{notes}}}\n')
 
 
 JSON_LINES: Final = JsonLines()  # the records' own ``to_json`` (``sniffer.records``)

@@ -205,18 +205,24 @@ class TextView:
         """The record's line as styled pieces: time, record number, then what the record is (for a frame
         its direction, bytes and decode, made once per distinct frame: ``sniffer.frame_parts``), and on
         an answer the command it answers and the latency."""
+        if isinstance(record, FrameRecord):
+            (i, t, direction, raw, header, frame, _violations, _details, reply_to, latency_s, _t_last,
+             _line_errors, _sides, _window, _severities) = record
+            shown, decoded = self._middles.get(direction, raw, header, frame)
+            if direction != "device" or reply_to is None:
+                tail = ""
+            elif latency_s is None:
+                tail = f"  re #{reply_to}"
+            else:  # the latency as ``latency_ms`` has it, one decimal shown
+                tail = f"  re #{reply_to}  {round(latency_s * 1000.0, 3):.1f} ms"
+            return [(f"{self._clock(t)} #{i:<4} ", ""), shown, decoded, (tail, "dim")]
         if isinstance(record, TimeoutRecord):
             when = show_time(record.t)
             waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
             return [(f"{when}       ", ""),
                     (f"device ✗ no answer to #{record.command} ({record.header or 'unknown'}){waited}",
                      "bold red")]
-        head = (f"{self._clock(record.t)} #{record.i:<4} ", "")
-        if isinstance(record, JunkRecord):
-            return [head, *_junk_body(record)]
-        shown, decoded = self._middles.get(record.dir, record.raw, record.header, record.frame)
-        tail = _tail(record) if record.dir == "device" and record.reply_to is not None else ""
-        return [head, shown, decoded, (tail, "dim")]
+        return [(f"{self._clock(record.t)} #{record.i:<4} ", ""), *_junk_body(record)]
 
     def _clock(self, t: Any) -> str:
         """``show_time(t)``, the clock of the last whole second shown remembered (``clock_second``)."""
@@ -265,14 +271,6 @@ def _frame_middle(direction: Any, raw: bytes, header: str | None, frame: Any) ->
         if header == spec.ALARM_HEADER:
             decoded += f" ({spec.alarm_meaning(frame.fields()['code'])})"
     return _shown(direction, raw), (f" {decoded}", "")
-
-
-def _tail(record: FrameRecord) -> str:
-    """The end of an answer's line: the command it answers and the latency."""
-    tail = f"  re #{record.reply_to}"
-    if record.latency_ms is not None:
-        tail += f"  {record.latency_ms:.1f} ms"
-    return tail
 
 
 def _after(record: Record) -> list[list[Part]]:
