@@ -1,5 +1,5 @@
-"""Records as JSON lines (docs/output.md): the one formatter of a record's JSON (``record.to_json()`` is
-its line, without the newline), each line ``json.dumps`` of the record's ``to_dict``.
+"""Records as JSON lines (docs/output.md): the views' one formatter of a record's JSON line, each line
+``json.dumps`` of the record's ``to_dict`` (what ``record.to_json()`` gives, through ``json``).
 
 How this works: a frame record's line is its numbers (``i``, ``t``; on an answer ``reply_to`` and
 ``latency_ms``) around a middle, ``"dir"`` to ``"sides"``, that depends on its direction, bytes, header
@@ -144,9 +144,8 @@ def _noted(record: FrameRecord) -> tuple[str, str] | None:
 
 
 class JsonLines:
-    """Makes records' JSON lines (``line``, ``extend``), keeping the middles of the last distinct frames:
-    the one formatter of the records' JSON (``Record.to_json`` is ``JSON_LINES.line`` without its
-    newline)."""
+    """Makes records' JSON lines (``line``, ``extend``), keeping the middles of the last distinct
+    frames."""
 
     __slots__ = ("_middles",)
 
@@ -204,5 +203,3 @@ class JsonLines:
         return (f'{{"type":"frame","i":{i},"t":{shown_t},{shown},"reply_to":{shown_reply},'
                 f'"latency_ms":{shown_ms}{notes}}}\n')
 
-
-JSON_LINES: Final = JsonLines()  # the records' own ``to_json`` (``sniffer.records``)

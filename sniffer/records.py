@@ -97,7 +97,7 @@ class FrameRecord(NamedTuple):
         return _with_notes(out, self.details, self.line_errors)
 
     def to_json(self) -> str:
-        return record_json(self)
+        return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
 CAPTURE_ENDED = "capture-ended"  # JunkRecord.reason: the data ended inside this frame (no violation)
@@ -137,7 +137,7 @@ class JunkRecord(NamedTuple):
         return _with_notes(out, self.details, self.line_errors)
 
     def to_json(self) -> str:
-        return record_json(self)
+        return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
 class TimeoutRecord(NamedTuple):
@@ -166,19 +166,10 @@ class TimeoutRecord(NamedTuple):
                 "severities": list(severities_of(self)), "details": list(self.details)}
 
     def to_json(self) -> str:
-        return record_json(self)
+        return json.dumps(self.to_dict(), separators=(",", ":"))
 
 
 Record = FrameRecord | JunkRecord | TimeoutRecord
-
-
-def record_json(record: Record) -> str:
-    """A record's JSON object (docs/output.md: ``to_dict`` as ``json.dumps(..., separators=(",", ":"))``
-    gives it), made by the one formatter of the views (``sniffer.json_lines``, which builds on these
-    records and so is imported when first asked)."""
-    from .json_lines import JSON_LINES
-
-    return JSON_LINES.line(record)[:-1]
 
 
 _MAX_LATENCY_S = 1e6  # a latency beyond this comes from damaged times and is not counted
