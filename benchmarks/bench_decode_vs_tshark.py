@@ -1,7 +1,9 @@
 """Benchmark: ``xac1 decode`` against tshark with a Lua dissector, on the same seeded files, in one run.
 
 Generates (``traffic.py``, seeded) each kind of field traffic (``cell``: a production cell, ``random``:
-fresh field values in every exchange, ``anomalous``: the cell with a rule broken every tenth exchange)
+fresh field values in every exchange, ``anomalous``: the cell with a rule broken every tenth exchange,
+``misbehaving``: a host that ignored an alarm, every later exchange judged, ``storm``: a host flooding
+communication errors)
 as an RTAC-serial pcapng and a socat ``-x`` log of ``--exchanges`` exchanges (the default, 500,000,
 is about 1,000,000 frames), then times, each as a child process (wall time, and the peak RSS of that child
 alone, from ``peak_rss.py``; the best of ``--repeat`` runs, the file read once just before each):

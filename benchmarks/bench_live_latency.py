@@ -2,7 +2,7 @@
 
 ``xac1 sniff`` feeds each chunk as a tap gives it and ticks once a poll (``sniffer.live``: every 50 ms at
 most), so a poll may end between a command and its answer. This replays a seeded conversation
-(``traffic.py``: cell, random and anomalous) through ``Analyzer.feed`` with a ``tick`` after each chunk with
+(``traffic.py``: each kind) through ``Analyzer.feed`` with a ``tick`` after each chunk with
 probability ``--tick`` (1: every chunk), and reports microseconds per chunk, records made, best of
 ``--rounds``. Issues 14 and 22: the live sniffer's per-chunk latency must not get worse; compare with the
 figures of an earlier commit run on the same machine (benchmarks/README.md).

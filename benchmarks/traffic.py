@@ -17,11 +17,20 @@ answer after the move's time (``xac1_proto.motion``: homing first, trapezoidal p
 - ``anomalous``: the cell's traffic with a rule broken every tenth exchange, cycling through the faults
   of ``_anomaly`` (a silence becomes a garbled answer on a move: a move's silence would hold every later
   command as sent during the move).
+- ``misbehaving``: the capture a debugger reads (issue 35): the cell's traffic, its device's alarm
+  (``MISBEHAVING_ALARM``, 09) raised at exchange ``MISBEHAVE_AT``; the host ignores it and goes on
+  with its route, and the device answers the alarm once, then forgets it (the simulator's
+  ``alarm-not-latched`` deviation) and answers as before: every later exchange is ``alarm-ignored`` on
+  the host line and ``latch-broken`` on the device's, with the cell's varying values.
+- ``storm``: the cell's host flooding communication errors: from exchange ``MISBEHAVE_AT`` every command
+  has a stray space before its CR LF (a bad length); the clean device answers each ``0%%01`` (and holds
+  alarm 01), so once ``spec.STORM_LIMIT`` of them are in a row every later command is also
+  ``comm-error-storm``. The commands carry the cell's varying values.
 
 Frames are built with the frame classes, never written by hand. Writers: socat ``-x`` dump and
 RTAC-serial pcapng (``sniffer.io.pcap.PcapngWriter``).
 
-Run: ``python benchmarks/traffic.py OUT --exchanges N --kind cell|random|anomalous
+Run: ``python benchmarks/traffic.py OUT --exchanges N --kind cell|random|anomalous|misbehaving|storm
 --format socat|pcapng``.
 """
 
@@ -43,12 +52,14 @@ from xac1_proto.codec import parse
 from xac1_proto.sim.config import SimConfig
 from xac1_proto.sim.model import DeviceModel
 
-Kind = Literal["cell", "random", "anomalous"]
+Kind = Literal["cell", "random", "anomalous", "misbehaving", "storm"]
 KINDS: Final[tuple[Kind, ...]] = get_args(Kind)
 START: Final = 1_790_000_000.0  # a fixed epoch: files are byte-identical for a seed
 STROKE: Final = 0x030000  # pulses the scripted hosts move within (196,608: a 2 m axis at 0.01 mm)
 TAUGHT: Final = 8  # points the cell teaches
 FAULTS: Final = 6  # kinds of fault ``_anomaly`` cycles through
+MISBEHAVE_AT: Final = 20  # the exchange from which the misbehaving and storm hosts misbehave (set-up done)
+MISBEHAVING_ALARM: Final = spec.ALARM_LIMIT  # the alarm the misbehaving host ignores (09, a limit)
 
 # A host script yields commands and is sent each command's answer (docs/protocol.md "Framing": one
 # command, then its answer).
@@ -111,7 +122,10 @@ def random_host(rng: random.Random) -> Host:
 
 
 HOSTS: Final[dict[Kind, Callable[[random.Random], Host]]] = {
-    "cell": cell_host, "random": random_host, "anomalous": cell_host}
+    "cell": cell_host, "random": random_host, "anomalous": cell_host, "misbehaving": cell_host,
+    "storm": cell_host}
+# kind -> the simulator's deviations (``xac1_proto.sim.config.DEVIATIONS``) its device shows
+DEVIATIONS: Final[dict[Kind, frozenset[str]]] = {"misbehaving": frozenset({"alarm-not-latched"})}
 
 
 def _anomaly(k: int, command: bytes, answer: bytes, move: bool) -> tuple[bytes, bytes | None]:
@@ -137,12 +151,17 @@ def conversation(n: int, seed: int = 1, kind: Kind = "cell") -> Iterator[Chunk]:
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
     rng = random.Random(seed)
-    device = DeviceModel(SimConfig(turnaround_s=0.0))  # the turnaround is drawn below, per answer
+    # the turnaround is drawn below, per answer
+    device = DeviceModel(SimConfig(turnaround_s=0.0, deviations=DEVIATIONS.get(kind, frozenset())))
     host = HOSTS[kind](rng)
     command = next(host)
     t = START
     for i in range(n):
         c = command.to_bytes()
+        if i == MISBEHAVE_AT and kind == "misbehaving":
+            device.raise_alarm(MISBEHAVING_ALARM, t)
+        elif i >= MISBEHAVE_AT and kind == "storm":
+            c = c[:-2] + b" " + c[-2:]  # a bad length: the device answers 0%%01
         t += len(c) * spec.BYTE_TIME_S
         (out,) = device.receive(c, t)
         device.outbox.pop(math.inf)  # sent: the outbox keeps nothing
@@ -194,7 +213,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--kind", choices=KINDS, default="cell",
                     help="cell (default), random (fresh values every exchange), anomalous (cell traffic, "
-                         "a rule broken every tenth exchange)")
+                         "a rule broken every tenth exchange), misbehaving (a host that ignored an alarm), "
+                         "storm (a host flooding communication errors)")
     ap.add_argument("--format", choices=tuple(WRITERS), default=None,
                     help="default: from the suffix (.pcapng, else socat)")
     args = ap.parse_args(argv)

@@ -1,46 +1,49 @@
 """The part of a view's line that a frame record's direction, bytes, header and frame decide, made once per
 distinct frame and kept.
 
-How this works: a view's line for a clean frame record is its numbers (record number, time, the command
+How this works: a view's line for a frame record is its numbers (record number, time, the command
 answered, the latency) around a part that is a pure function of the record's direction, bytes, header
 and frame (the JSON from ``"dir"`` to ``"sides"``; the text view's bytes and decoded frame). A
 ``FrameParts`` keeps, per direction and frame bytes, the last part made with the frame object it was made
-from; a record gets it again only when it holds that very frame object (frames are immutable) with the
-same header: nothing about earlier records is replayed, only a function of the frame is not computed
-twice. It pays because the codec hands out one frame object per distinct bytes (``codec.read_frame``
-remembers the last lines it read) and traffic repeats its frames; on traffic that does not, each lookup
-misses and the part is made as without it. At most ``KEPT`` parts a direction are kept.
-
-A view looks a part up in its loop (``kept[direction].get(raw)``, the frame and header checked) and
-calls ``made`` on a miss.
+from; ``get`` gives it again only for that very frame object (frames are immutable) with the same header:
+nothing about earlier records is replayed, only a function of the frame is not computed twice. It pays
+because the codec hands out one frame object per distinct bytes (``codec.read_frame`` remembers the last
+lines it read) and traffic repeats its frames; on traffic that does not, each lookup misses and the part
+is made as without it. At most ``KEPT`` parts a direction are kept.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Final
+from typing import Any, Final, Generic, TypeVar
 
 KEPT: Final = 4096  # parts kept a direction (then forgotten all at once, and made again as they come)
 
-# frame bytes -> (the frame and header the part was made from, the part)
-Kept = dict[bytes, tuple[Any, Any, str]]
+T = TypeVar("T")
 
 
-class FrameParts:
-    """Parts made by ``make(direction, raw, header, frame)`` (None: that record has no such part), kept
-    per direction (``kept``: ``{"host": {raw: (frame, header, part)}, "device": {...}}``)."""
+class FrameParts(Generic[T]):
+    """Parts made by ``make(direction, raw, header, frame)`` (a part None: that record has none, and it is
+    not kept), kept per direction ``host`` or ``device`` and frame bytes."""
 
-    __slots__ = ("kept", "_make")
+    __slots__ = ("_kept", "_make")
 
-    def __init__(self, make: Callable[[str, bytes, Any, Any], str | None]) -> None:
+    def __init__(self, make: Callable[[Any, Any, Any, Any], T]) -> None:
         self._make = make
-        self.kept: dict[str, Kept] = {"host": {}, "device": {}}
+        # direction -> frame bytes -> (the frame and header the part was made from, the part)
+        self._kept: dict[str, dict[bytes, tuple[Any, Any, T]]] = {"host": {}, "device": {}}
 
-    def made(self, direction: Any, raw: bytes, header: Any, frame: Any) -> str | None:
-        """The part made (and kept, for a direction ``host`` or ``device``)."""
+    def get(self, direction: Any, raw: Any, header: Any, frame: Any) -> T:
+        """The part of a record with this direction, bytes, header and frame: the one kept when it was
+        made from this very frame object and an equal header, else made now (and kept)."""
+        by_raw = self._kept.get(direction) if type(direction) is str else None
+        if by_raw is None or type(raw) is not bytes:
+            return self._make(direction, raw, header, frame)
+        known = by_raw.get(raw)
+        if known is not None and known[0] is frame and known[1] == header:
+            return known[2]
         part = self._make(direction, raw, header, frame)
-        by_raw = self.kept.get(direction)
-        if part is not None and by_raw is not None:
+        if part is not None:
             if len(by_raw) >= KEPT:
                 by_raw.clear()
             by_raw[raw] = (frame, header, part)

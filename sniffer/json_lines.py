@@ -1,5 +1,5 @@
-"""Records as JSON lines (docs/output.md): each line exactly ``record.to_json()`` and a newline, made in
-one loop over a batch of records.
+"""Records as JSON lines (docs/output.md): the views' one formatter of a record's JSON line, each line
+``json.dumps`` of the record's ``to_dict`` (what ``record.to_json()`` gives, through ``json``).
 
 How this works: a frame record's line is its numbers (``i``, ``t``; on an answer ``reply_to`` and
 ``latency_ms``) around a middle, ``"dir"`` to ``"sides"``, that depends on its direction, bytes, header
@@ -75,15 +75,14 @@ def json_number(x: Any) -> str:
 
 
 def json_t(t: Any) -> str:
-    """``json.dumps(round(t, 6))``: ``to_dict``'s ``t`` (``JsonLines.extend`` inlines the usual case)."""
+    """``json.dumps(round(t, 6))``: ``to_dict``'s ``t``."""
     if type(t) is float and 0.001 <= t < _T_MAX:
         return fixed(t, 6)
     return "null" if t is None else json_number(round(t, 6))
 
 
 def json_ms(seconds: Any) -> str:
-    """``json.dumps(round(seconds * 1000.0, 3))`` (``to_dict``'s ``latency_ms``; ``JsonLines.extend``
-    inlines the usual case)."""
+    """``json.dumps(round(seconds * 1000.0, 3))`` (``to_dict``'s ``latency_ms``)."""
     if seconds is None:
         return "null"
     ms = seconds * 1000.0
@@ -93,7 +92,7 @@ def json_ms(seconds: Any) -> str:
 
 
 def json_line(record: Record) -> str:
-    """``record.to_json()`` and a newline, through ``json`` (the records' own ``to_dict``)."""
+    """A record's line through ``json``: its ``to_dict`` encoded, and a newline."""
     if type(record) in _RECORD_TYPES:
         return ENCODE(record.to_dict()) + "\n"
     return record.to_json() + "\n"
@@ -145,67 +144,62 @@ def _noted(record: FrameRecord) -> tuple[str, str] | None:
 
 
 class JsonLines:
-    """Makes records' JSON lines (``extend``), keeping the middles of the last distinct frames."""
+    """Makes records' JSON lines (``line``, ``extend``), keeping the middles of the last distinct
+    frames."""
 
     __slots__ = ("_middles",)
 
     def __init__(self) -> None:
-        self._middles = FrameParts(middle)
+        self._middles: FrameParts[str | None] = FrameParts(middle)
 
     def line(self, record: Record) -> str:
-        """``record.to_json()`` and a newline."""
-        out: list[str] = []
-        self.extend((record,), out)
-        return out[0]
+        """The record's JSON object (docs/output.md) and a newline."""
+        if type(record) is FrameRecord:
+            made = self.frame_line(record)
+            if made is not None:
+                return made
+        return json_line(record)
 
     def extend(self, records: Iterable[Record], out: list[str]) -> None:
-        """Each record's ``to_json()`` and a newline, appended to ``out``."""
-        middles = self._middles
-        kept, made = middles.kept, middles.made
-        append = out.append
+        """Each record's ``line``, appended to ``out``."""
+        frame_line, append = self.frame_line, out.append
         for record in records:
-            if type(record) is not FrameRecord:
-                append(json_line(record))
-                continue
-            (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last,
-             line_errors, sides, _window, _severities) = record
-            if type(i) is not int or type(raw) is not bytes:
-                append(json_line(record))
-                continue
-            by_raw = kept.get(direction)
-            known = None if by_raw is None else by_raw.get(raw)
-            if known is not None and known[0] is frame and known[1] == header:
-                shown = known[2]
-            else:
-                made_now = made(direction, raw, header, frame)
-                if made_now is None:
-                    append(json_line(record))
-                    continue
-                shown = made_now
-            notes = ""
-            if violations or details or line_errors or sides:
-                noted = _noted(record)
-                if noted is None:
-                    append(json_line(record))
-                    continue
-                judged, notes = noted
-                shown = shown[:_UNJUDGED] + judged
-            if type(t) is float and 0.001 <= t < _T_MAX:  # json_t(t)
-                shown_t = f"{t:.6f}".rstrip("0")
-                if shown_t[-1] == ".":
-                    shown_t += "0"
-            else:
-                shown_t = json_t(t)
-            if direction != "device":
-                append(f'{{"type":"frame","i":{i},"t":{shown_t},{shown}{notes}}}\n')
-                continue
-            ms = latency * 1000.0 if type(latency) is float else None
-            if ms is not None and 0.001 <= ms < _MS_MAX:  # json_ms(latency)
-                shown_ms = f"{ms:.3f}".rstrip("0")
-                if shown_ms[-1] == ".":
-                    shown_ms += "0"
-            else:
-                shown_ms = json_ms(latency)
-            shown_reply = reply_to if type(reply_to) is int else json_number(reply_to)
-            append(f'{{"type":"frame","i":{i},"t":{shown_t},{shown},"reply_to":{shown_reply},'
-                   f'"latency_ms":{shown_ms}{notes}}}\n')
+            made = frame_line(record) if type(record) is FrameRecord else None
+            append(json_line(record) if made is None else made)
+
+    def frame_line(self, record: FrameRecord) -> str | None:
+        """A frame record's line from its numbers around its middle (made once per distinct frame); None
+        when a value is not of the usual types (the line is then ``json``'s, ``json_line``)."""
+        (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last,
+         line_errors, sides, _window, _severities) = record
+        if type(i) is not int:
+            return None
+        shown = self._middles.get(direction, raw, header, frame)
+        if shown is None:
+            return None
+        notes = ""
+        if violations or details or line_errors or sides:
+            noted = _noted(record)
+            if noted is None:
+                return None
+            judged, notes = noted
+            shown = shown[:_UNJUDGED] + judged
+        if type(t) is float and 0.001 <= t < _T_MAX:  # json_t(t) without its call (the usual time)
+            shown_t = f"{t:.6f}".rstrip("0")
+            if shown_t[-1] == ".":
+                shown_t += "0"
+        else:
+            shown_t = json_t(t)
+        if direction != "device":
+            return f'{{"type":"frame","i":{i},"t":{shown_t},{shown}{notes}}}\n'
+        ms = latency * 1000.0 if type(latency) is float else None
+        if ms is not None and 0.001 <= ms < _MS_MAX:  # json_ms(latency) without its call
+            shown_ms = f"{ms:.3f}".rstrip("0")
+            if shown_ms[-1] == ".":
+                shown_ms += "0"
+        else:
+            shown_ms = json_ms(latency)
+        shown_reply = reply_to if type(reply_to) is int else json_number(reply_to)
+        return (f'{{"type":"frame","i":{i},"t":{shown_t},{shown},"reply_to":{shown_reply},'
+                f'"latency_ms":{shown_ms}{notes}}}\n')
+

@@ -8,10 +8,10 @@ violation with its docs/protocol.md meaning and the detail; errors in red, notic
 when the stream is a terminal (``color`` forces it). ``xac1 sniff``, ``xac1 proxy`` and ``xac1 decode``
 share these.
 
-Speed: a batch of records is formatted in one loop (``write_many``); a clean frame record's line is its
-numbers around a part made once per distinct frame (``sniffer.frame_parts``; the JSON line exactly as
-``json.dumps`` of its ``to_dict`` reads, ``sniffer.json_lines``; tests/test_view_fast.py), the clock of
-the last whole second is remembered (``clock_second``), and offline lines are written in batches (``_Lines``).
+One formatter a view: the text view's ``line`` (styled pieces; without colour a line is their plain
+text), the JSON lines' ``sniffer.json_lines`` (``record.to_json()`` is its line). Speed: a frame record's
+line is its numbers around a part made once per distinct frame (``sniffer.frame_parts``), the clock of the
+last whole second is remembered (``clock_second``), and offline lines are written in batches (``_Lines``).
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ def clock_second(t: Any, shown: str) -> float | None:
     ``datetime.fromtimestamp`` does not round up into the next second; else None (no time, not a float,
     damaged, negative). ``datetime`` splits a float time with C ``modf`` and rounds the microseconds half
     to even; for a time ``t`` inside that second, ``t - second`` is exactly the fraction ``modf`` gives,
-    so ``round((t - second) * 1e6)`` is the microsecond it rounds to (``TextView.write_many`` shows the
+    so ``round((t - second) * 1e6)`` is the microsecond it rounds to (``TextView._clock`` shows the
     clock of the times inside the last second so). The local time zone is read once a second: a
     ``time.tzset`` inside a second shows from the next."""
     if type(t) is not float or "?" in shown or not t >= 0.0:
@@ -177,7 +177,7 @@ class TextView:
         self._lines = _Lines(stream, live)
         self._second = math.nan  # the whole second of the last clock shown (``clock_second``)
         self._prefix = ""  # its clock, "HH:MM:SS."
-        self._middles = FrameParts(_middle)
+        self._middles: FrameParts[tuple[Part, Part]] = FrameParts(_frame_middle)
 
     def _print(self, parts: list[Part]) -> None:
         """One line: what ``console.print`` prints of the pieces."""
@@ -190,93 +190,50 @@ class TextView:
         self.console.print(Text.assemble(*parts))
 
     def write(self, record: Record) -> None:
-        self.write_many((record,))
+        """The record's line (``line``), then its violations and line errors."""
+        self._print(self.line(record))
+        if record.violations or getattr(record, "line_errors", ()):
+            for parts in _after(record):
+                self._print(parts)
 
     def write_many(self, records: Iterable[Record]) -> None:
-        """``write`` each record: its line, then its violations and line errors. Without colour, a frame
-        record's line is one format of its numbers around its middle (``_middle``, made once per distinct
-        frame: ``sniffer.frame_parts``); any other line is printed from its styled pieces
-        (``_write_pieces``, ``_after``)."""
-        if not self._plain:
-            for record in records:
-                self._write_pieces(record)
-            return
-        kept, made = self._middles.kept, self._middles.made
-        lines = self._lines
-        pending = lines.pending
-        second, prefix = self._second, self._prefix
-        try:
-            for record in records:
-                if type(record) is not FrameRecord:
-                    self._write_pieces(record)
-                    continue
-                (i, t, direction, raw, header, frame, violations, _details, reply_to, latency, _t_last,
-                 line_errors, _sides, _window, _severities) = record
-                if type(i) is not int or type(raw) is not bytes:
-                    self._write_pieces(record)
-                    continue
-                by_raw = kept.get(direction)
-                known = None if by_raw is None else by_raw.get(raw)
-                if known is not None and known[0] is frame and known[1] == header:
-                    shown = known[2]
-                else:
-                    made_now = made(direction, raw, header, frame)
-                    if made_now is None:
-                        self._write_pieces(record)
-                        continue
-                    shown = made_now
-                if direction != "device" or reply_to is None:
-                    tail = ""
-                elif type(reply_to) is not int:
-                    self._write_pieces(record)
-                    continue
-                elif latency is None:
-                    tail = f"  re #{reply_to}"
-                elif (type(ms := latency * 1000.0) is float and 0.0 <= ms < 1e6
-                      and abs(ms * 10.0 % 1.0 - 0.5) > 0.006):  # the note above ``_tail``
-                    tail = f"  re #{reply_to}  {ms:.1f} ms"
-                else:
-                    tail = f"  re #{reply_to}  {round(ms, 3):.1f} ms"
-                if (type(t) is float and 0.0 <= (into := t - second) < 1.0
-                        and (us := round(into * 1e6)) < 1_000_000):  # inside the last second shown
-                    clock = prefix + _MS[us // 1000]
-                else:
-                    clock = show_time(t)
-                    whole = clock_second(t, clock)
-                    if whole is not None:
-                        second, prefix = whole, clock[:-3]
-                # a record number from 1000 up fills its column: ``{i:<4}`` (slower) pads nothing
-                line = f"{clock} #{i} {shown}{tail}\n" if i >= 1000 else f"{clock} #{i:<4} {shown}{tail}\n"
-                if lines.batched:  # lines.add(line)
-                    pending.append(line)
-                    if len(pending) >= BATCH_LINES:
-                        lines.write_pending()
-                else:
-                    lines.add(line)
-                if violations or line_errors:
-                    for parts in _after(record):
-                        self._print(parts)
-        finally:
-            self._second, self._prefix = second, prefix
-
-    def _write_pieces(self, record: Record) -> None:
-        """A record's line, violations and line errors, each printed from its styled pieces."""
-        self._print(self.line(record))
-        for parts in _after(record):
-            self._print(parts)
+        """``write`` each record."""
+        for record in records:
+            self.write(record)
 
     def line(self, record: Record) -> list[Part]:
+        """The record's line as styled pieces: time, record number, then what the record is (for a frame
+        its direction, bytes and decode, made once per distinct frame: ``sniffer.frame_parts``), and on
+        an answer the command it answers and the latency."""
+        if isinstance(record, FrameRecord):
+            (i, t, direction, raw, header, frame, _violations, _details, reply_to, latency_s, _t_last,
+             _line_errors, _sides, _window, _severities) = record
+            shown, decoded = self._middles.get(direction, raw, header, frame)
+            if direction != "device" or reply_to is None:
+                tail = ""
+            elif latency_s is None:
+                tail = f"  re #{reply_to}"
+            else:  # the latency as ``latency_ms`` has it, one decimal shown
+                tail = f"  re #{reply_to}  {round(latency_s * 1000.0, 3):.1f} ms"
+            return [(f"{self._clock(t)} #{i:<4} ", ""), shown, decoded, (tail, "dim")]
         if isinstance(record, TimeoutRecord):
             when = show_time(record.t)
             waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
             return [(f"{when}       ", ""),
                     (f"device ✗ no answer to #{record.command} ({record.header or 'unknown'}){waited}",
                      "bold red")]
-        head = [(f"{show_time(record.t)} #{record.i:<4} ", ""), *_body(record)]
-        if isinstance(record, JunkRecord):
-            return head
-        tail = _tail(record) if record.dir == "device" and record.reply_to is not None else ""
-        return [*head, (tail, "dim")]
+        return [(f"{self._clock(record.t)} #{record.i:<4} ", ""), *_junk_body(record)]
+
+    def _clock(self, t: Any) -> str:
+        """``show_time(t)``, the clock of the last whole second shown remembered (``clock_second``)."""
+        if (type(t) is float and 0.0 <= (into := t - self._second) < 1.0
+                and (us := round(into * 1e6)) < 1_000_000):  # inside the last second shown
+            return self._prefix + _MS[us // 1000]
+        clock = show_time(t)
+        whole = clock_second(t, clock)
+        if whole is not None:
+            self._second, self._prefix = whole, clock[:-3]
+        return clock
 
     def summary(self, summary: dict[str, Any]) -> None:
         self._lines.write_pending()
@@ -289,52 +246,31 @@ class TextView:
         self.stream.flush()
 
 
-def _body(record: FrameRecord | JunkRecord) -> list[Part]:
-    """A frame or junk record's line but its time, number and tail: direction, bytes, what they are."""
-    arrow = "→" if record.dir == "host" else "←"
-    colour = "cyan" if record.dir == "host" else "green"
-    shown: Part = (f"{record.dir:<6} {arrow} {show_raw(record.raw):<22}", colour)
-    if isinstance(record, JunkRecord) and record.reason == CAPTURE_ENDED:
+def _shown(direction: Any, raw: bytes) -> Part:
+    """A record's direction, arrow and bytes as typed, in its direction's colour."""
+    arrow = "→" if direction == "host" else "←"
+    colour = "cyan" if direction == "host" else "green"
+    return (f"{direction:<6} {arrow} {show_raw(raw):<22}", colour)
+
+
+def _junk_body(record: JunkRecord) -> list[Part]:
+    """A junk record's line but its time and number: direction, bytes, why they are junk."""
+    shown = _shown(record.dir, record.raw)
+    if record.reason == CAPTURE_ENDED:
         cut = "" if record.reply_to is None else f", the answer to #{record.reply_to}"
         return [shown, (" ", ""), (f"cut: the capture ended inside this frame{cut} (no violation)", "yellow")]
-    if isinstance(record, JunkRecord):
-        return [shown, (" ", ""), (f"junk ({record.reason})", "red")]
-    if record.frame is None:
-        decoded = f"{record.header or 'unknown'} (not decodable)"
-    else:
-        decoded = str(record.frame)
-        if record.header == spec.ALARM_HEADER:
-            decoded += f" ({spec.alarm_meaning(record.frame.fields()['code'])})"
-    return [shown, (f" {decoded}", "")]
+    return [shown, (" ", ""), (f"junk ({record.reason})", "red")]
 
 
-def _middle(direction: Any, raw: bytes, header: str | None, frame: Any) -> str | None:
-    """A clean frame record's plain line between its number and its tail (what ``_body`` shows:
-    direction, bytes, what they are); None when it holds a tab (rich expands those) or the direction is
-    not text."""
-    if type(direction) is not str:
-        return None
-    arrow = "→" if direction == "host" else "←"
+def _frame_middle(direction: Any, raw: bytes, header: str | None, frame: Any) -> tuple[Part, Part]:
+    """A frame record's line between its number and its tail: direction and bytes, what they decode to."""
     if frame is None:
         decoded = f"{header or 'unknown'} (not decodable)"
     else:
         decoded = str(frame)
         if header == spec.ALARM_HEADER:
             decoded += f" ({spec.alarm_meaning(frame.fields()['code'])})"
-    shown = f"{direction:<6} {arrow} {show_raw(raw):<22} {decoded}"
-    return None if "\t" in shown else shown
-
-
-# ``TextView.write_many`` shows a latency of ``ms`` milliseconds (from 0 up to 1e6) as ``f"{ms:.1f}"``
-# when no tie of the one-decimal rounding (``k.k5``) is within 0.0006 ms of it: rounding to 3 decimals
-# first (``_tail``: ``latency_ms``, ``round(ms, 3)``) moves it by 0.0005 ms at most, never across that
-# tie, so both give the same digit. ``ms * 10.0 % 1.0`` is that fraction to within 1e-9 below 1e6 ms.
-def _tail(record: FrameRecord) -> str:
-    """The end of an answer's line: the command it answers and the latency."""
-    tail = f"  re #{record.reply_to}"
-    if record.latency_ms is not None:
-        tail += f"  {record.latency_ms:.1f} ms"
-    return tail
+    return _shown(direction, raw), (f" {decoded}", "")
 
 
 def _after(record: Record) -> list[list[Part]]:

@@ -1,5 +1,6 @@
 """The benchmarks' field traffic (benchmarks/traffic.py): clean kinds that today's analyzer finds
-faultless, values that vary as a real device's do, anomalies every tenth exchange, files that read back."""
+faultless, values that vary as a real device's do, anomalies every tenth exchange, a host that ignored an
+alarm and one flooding communication errors (every later exchange judged), files that read back."""
 
 from __future__ import annotations
 
@@ -113,6 +114,69 @@ def test_anomalous_breaks_a_rule_every_tenth_exchange() -> None:
     assert sum(1 for c in bad if c.dir == DEVICE) == n - 2  # two silences in twelve faults
 
 
+def frame_codes(chunks: list[Chunk]) -> list[tuple[str, bytes, tuple[str, ...]]]:
+    """(direction, bytes, violation codes) of every frame record the analyzer makes of ``chunks``."""
+    analyzer = Analyzer()
+    records = [r for c in chunks for r in analyzer.feed(c)] + analyzer.close()
+    assert [r.type for r in records] == ["frame"] * len(chunks)
+    return [(r.dir, r.raw, tuple(r.violations)) for r in records]
+
+
+def test_misbehaving_host_ignores_the_alarm_on_every_later_exchange() -> None:
+    """Misbehaving traffic is the cell's until its device answers an alarm; the host goes on without a
+    reset and the device, forgetting the alarm, answers normally: every later host line is
+    ``alarm-ignored`` and every later answer ``latch-broken``, and nothing before the alarm is judged."""
+    n = 600
+    frames = frame_codes(list(traffic.conversation(n, seed=6, kind="misbehaving")))
+    alarm = next(k for k, (d, raw, _) in enumerate(frames) if d == DEVICE and raw.startswith(b"0%%"))
+    assert alarm == 2 * traffic.MISBEHAVE_AT + 1
+    assert frames[alarm][1] == b"0%%%%%02X\r\n" % traffic.MISBEHAVING_ALARM
+    assert [codes for _, _, codes in frames[:alarm + 1] if codes] == []
+    later = frames[alarm + 1:]
+    assert len(later) == 2 * (n - traffic.MISBEHAVE_AT - 1)
+    assert all(codes == ("alarm-ignored",) for d, _, codes in later if d == HOST)
+    assert all(codes == ("latch-broken",) for d, _, codes in later if d == DEVICE)
+
+
+def test_misbehaving_values_vary_as_the_cell_s_do() -> None:
+    """After the ignored alarm the device answers as a working cell's does: the position read (0RC) and
+    the outputs (0RS) keep changing, no alarm answer is repeated."""
+    chunks = list(traffic.conversation(1500, seed=1, kind="misbehaving"))
+    later = chunks[2 * traffic.MISBEHAVE_AT + 2:]
+    assert len(set(answers(later, b"0RC"))) > 40
+    assert len(set(answers(later, b"0RS"))) == 4
+    assert answers(later, b"0%%") == []
+
+
+def test_storm_host_floods_communication_errors() -> None:
+    """Storm traffic is the cell's until the host starts sending every command with a bad length; each
+    is answered ``0%%01``, and once ``spec.STORM_LIMIT`` are in a row every later command is also
+    ``comm-error-storm``. The commands go on carrying the cell's varying values."""
+    n = 400
+    chunks = list(traffic.conversation(n, seed=6, kind="storm"))
+    frames = frame_codes(chunks)
+    start = 2 * traffic.MISBEHAVE_AT
+    assert [codes for _, _, codes in frames[:start] if codes] == []
+    hosts = [codes for d, _, codes in frames[start:] if d == HOST]
+    devices = [raw for d, raw, _ in frames[start:] if d == DEVICE]
+    assert all("bad-length" in codes for codes in hosts)
+    assert devices == [b"0%%01\r\n"] * len(devices) and len(devices) == n - traffic.MISBEHAVE_AT
+    assert all("comm-error-storm" in codes for codes in hosts[spec.STORM_LIMIT:])
+    assert not any("comm-error-storm" in codes for codes in hosts[:spec.STORM_LIMIT])
+    assert len({c.data for c in chunks[start:] if c.dir == HOST}) > 15
+
+
+@pytest.mark.parametrize("kind", ["misbehaving", "storm"])
+def test_misbehaving_kinds_are_seeded(kind: traffic.Kind) -> None:
+    """The misbehaving kinds are seeded like the others: the same seed gives the same chunks, another
+    seed other ones."""
+    def run(seed: int) -> list[Chunk]:
+        return list(traffic.conversation(80, seed=seed, kind=kind))
+
+    assert run(11) == run(11)
+    assert run(11) != run(12)
+
+
 @pytest.mark.parametrize("fmt", ["socat", "pcapng"])
 @pytest.mark.parametrize("kind", traffic.KINDS)
 def test_written_files_read_back_as_the_chunks(tmp_path: Path, fmt: str, kind: traffic.Kind) -> None:
@@ -139,7 +203,7 @@ def test_same_seed_same_traffic_other_seed_other() -> None:
 
 
 def test_unknown_kind_is_refused() -> None:
-    """A kind that is not one of the three is a clear error naming the known ones."""
+    """A kind that is not one of the known ones is a clear error naming them."""
     with pytest.raises(ValueError, match="cell, random, anomalous"):
         next(traffic.conversation(1, kind="clean"))  # type: ignore[arg-type]
 

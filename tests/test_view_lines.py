@@ -1,5 +1,6 @@
-"""The views write what the records say: ``JsonlView`` a record's line (``sniffer.json_lines``) exactly as
-``record.to_json()`` reads, ``TextView`` without colour the plain text of the styled pieces that
+"""The views write what the records say: ``JsonlView`` a record's line exactly as docs/output.md has it
+(``json.dumps`` of the record's ``to_dict``, compact; ``record.to_json()`` the same without the newline),
+``TextView`` without colour the plain text of the styled pieces that
 ``TextView.line`` and ``violation_parts`` give (rich's rendering where a tab is), the number helpers
 (``fixed``, ``json_t``, ``json_ms``) and the text view's clock and latency exactly as ``json.dumps``,
 ``round`` and ``datetime`` give them. Each record on its own, and one view over a whole stream (as a
@@ -82,12 +83,18 @@ def plain_text(record: Record) -> str:
     return stream.getvalue()
 
 
+def dumped(record: Record) -> str:
+    """The record's ``to_dict`` as compact JSON: what docs/output.md says its line is."""
+    return json.dumps(record.to_dict(), separators=(",", ":"))
+
+
 def assert_views_say_what_records_say(records: list[Record]) -> None:
-    """Each record: the JSON line is ``to_json()`` (raising where it raises); the text the pieces'. Then
-    ``assert_one_view_says_what_records_say``."""
+    """Each record: the JSON line (and ``to_json()``) is its ``to_dict`` as JSON (raising where that
+    raises); the text the pieces'. Then ``assert_one_view_says_what_records_say``."""
     for record in records:
-        assert _outcome(lambda r=record: JsonlView(io.StringIO()).line(r)) == \
-            _outcome(lambda r=record: r.to_json() + "\n")
+        expected = _outcome(lambda r=record: dumped(r) + "\n")
+        assert _outcome(lambda r=record: JsonlView(io.StringIO()).line(r)) == expected
+        assert _outcome(lambda r=record: r.to_json() + "\n") == expected
         text = TextView(io.StringIO(), color=False)
         got = _outcome(lambda r=record, v=text: (v.write(r), v.flush(), v.stream.getvalue())[2])
         assert got == _outcome(lambda r=record: plain_text(r)), record
@@ -97,8 +104,8 @@ def assert_views_say_what_records_say(records: list[Record]) -> None:
 def assert_one_view_says_what_records_say(records: list[Record]) -> None:
     """One view of each kind over the whole stream (as a decode has), offline and live, in one batch and
     record by record: every line is its own record's, whatever the records before it held."""
-    ok = [r for r in records if _outcome(lambda r=r: (r.to_json(), plain_text(r)))[0] == "ok"]
-    expected = {"jsonl": "".join(r.to_json() + "\n" for r in ok), "text": "".join(map(plain_text, ok))}
+    ok = [r for r in records if _outcome(lambda r=r: (dumped(r), plain_text(r)))[0] == "ok"]
+    expected = {"jsonl": "".join(dumped(r) + "\n" for r in ok), "text": "".join(map(plain_text, ok))}
     for live in (False, True):
         for by_record in (False, True):
             views = {"jsonl": JsonlView(io.StringIO(), live=live),
@@ -120,7 +127,7 @@ def assert_one_view_says_what_records_say(records: list[Record]) -> None:
 @example([], [0.0] * 40, [1], True, set(), True)
 def test_views_on_generated_conversations(items, dts, sizes_, timed, flagged, close_late):
     """Every violation, junk, line errors, timing edges, with and without time: the JSON lines are the
-    records' ``to_json``, the plain text rich's rendering of the same pieces."""
+    records' ``to_dict`` as JSON, the plain text rich's rendering of the same pieces."""
     chunks = chunks_of(items, dts, sizes_, timed, flagged)
     analyzer = Analyzer()
     records: list[Record] = []
@@ -319,7 +326,7 @@ def test_write_many_batches_like_write(live):
     many.write_many(records)
     one.flush()
     many.flush()
-    assert one.stream.getvalue() == many.stream.getvalue() == "".join(r.to_json() + "\n" for r in records)
+    assert one.stream.getvalue() == many.stream.getvalue() == "".join(dumped(r) + "\n" for r in records)
     calls = [c for c in many.stream.calls if c]
     assert len(calls) == (len(records) if live else 2)
 
@@ -342,7 +349,7 @@ def test_fixed_is_repr_of_round_to_6_digits(x):
     """A time as ``json.dumps(round(t, 6))``, by the helper and in a record's line."""
     assert json_lines.fixed(x, 6) == repr(round(x, 6))
     assert json_lines.json_t(x) == json.dumps(round(x, 6))
-    assert_line_is_to_json(t=x)
+    assert_line_is_dumped(t=x)
 
 
 @settings(max_examples=1500, deadline=None)
@@ -354,7 +361,7 @@ def test_fixed_is_repr_of_round_to_3_digits(x):
     if x < 1e12:
         assert json_lines.fixed(x, 3) == repr(round(x, 3))
     assert json_lines.json_ms(x / 1000.0) == json.dumps(round(x / 1000.0 * 1000.0, 3))
-    assert_line_is_to_json(latency_s=x / 1000.0)
+    assert_line_is_dumped(latency_s=x / 1000.0)
 
 
 @settings(max_examples=1000, deadline=None)
@@ -365,16 +372,16 @@ def test_json_numbers_of_any_value(x):
     assert json_lines.json_t(x) == json.dumps(None if x is None else round(x, 6))
     assert json_lines.json_ms(x) == json.dumps(None if x is None else round(x * 1000.0, 3))
     assert json_lines.json_number(x) == json.dumps(x)
-    assert_line_is_to_json(t=x, latency_s=x, i=x if type(x) is int else 7, reply_to=x)
+    assert_line_is_dumped(t=x, latency_s=x, i=x if type(x) is int else 7, reply_to=x)
 
 
-def assert_line_is_to_json(**numbers: Any) -> None:
-    """An answer's JSON line with these numbers is its ``to_json()``."""
+def assert_line_is_dumped(**numbers: Any) -> None:
+    """An answer's JSON line with these numbers is its ``to_dict`` as JSON."""
     frame = fr.ReadCurrentAnswer(n=3, v=9, a=3, o=1, pos=0x12345)
     values = dict(i=7, t=T0, dir="device", raw=frame.to_bytes(), header=frame.HEADER, frame=frame, reply_to=6,
                   latency_s=0.002)
     record = FrameRecord(**{**values, **numbers})
-    assert json_lines.JsonLines().line(record) == record.to_json() + "\n"
+    assert json_lines.JsonLines().line(record) == dumped(record) + "\n"
 
 
 def datetime_clock(t: Any) -> str:
