@@ -31,18 +31,21 @@ def test_the_plugin_and_the_cli_share_one_policy(capfd) -> None:
     """``StopPolicy.shared`` is the policy already in place: the first signal raises ``Interrupted``
     once; after the inner taker uninstalls, a second signal is still ignored and said so (was: a second
     policy took it as a first signal and its name replaced the first's in the verdict)."""
+    before = signal.getsignal(signal.SIGTERM)
     outer = StopPolicy("xac1 conformance").install()
     try:
+        installed = signal.getsignal(signal.SIGTERM)
+        assert installed != before
         inner = StopPolicy.shared("xac1 conformance")
         assert inner is outer
         with pytest.raises(Interrupted):
             signal.raise_signal(signal.SIGINT)
         inner.uninstall()
         signal.raise_signal(signal.SIGTERM)  # no exception: ignored
-        assert outer.stopped_by == "SIGINT" and signal.getsignal(signal.SIGTERM) == outer._handle
+        assert outer.stopped_by == "SIGINT" and signal.getsignal(signal.SIGTERM) == installed
     finally:
         outer.uninstall()
-    assert signal.getsignal(signal.SIGTERM) != outer._handle
+    assert signal.getsignal(signal.SIGTERM) == before
     err = capfd.readouterr().err
     assert "xac1 conformance: SIGINT: stopping" in err and "xac1 conformance: SIGTERM ignored" in err
 

@@ -261,6 +261,7 @@ def write_recording(path: Path, frames_wanted: int) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(300)  # about 70 s of decoding on an idle core: more than the global limit under load
 def test_one_million_frames_report_is_bounded(tmp_path):
     """A capture of 1,000,000 frames (about 14 hours of traffic) decodes with ``--report`` in bounded
     memory (peak RSS under MAX_RSS_MB) into a report under MAX_REPORT_BYTES, which says it aggregated
