@@ -92,6 +92,18 @@ class Waiting(deque[WaitingLine]):
             self._recount()
         return line
 
+    def take_own_answer(self, header: str, t: float | None) -> WaitingLine | None:
+        """The head line, taken out, when an answer of ``header`` (a command's, not an alarm) begun at
+        ``t`` is its own: of its header, sent before ``t``, not discarded during a move unless it alone
+        waits. None when the answer is not the head's (the engine then looks further down the queue)."""
+        head = self[0] if self else None
+        if head is None or head.header != header:
+            return None
+        if (t is not None and head.t_last is not None and head.t_last > t) \
+                or (head.kind == DISCARD and len(self) > 1):
+            return None
+        return self.popleft()
+
     def clear(self) -> None:
         super().clear()
         self.due = _NEVER
