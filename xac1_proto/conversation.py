@@ -998,13 +998,12 @@ class Conversation:
         is known not homed in mode 1. True when found."""
         k = self.knowledge
         unknown = a.pos == spec.UNKNOWN_POSITION
-        shown = f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}"
         if unknown and (a.n, a.v, a.a) != (0, 0, 0):
-            self._readback(found, "0RC", shown, Fact(False, KNOWN), "Pos FFFFFF, which comes with N, V, A 0",
-                           "readback-unhomed")
+            self._readback(found, "0RC", _shown(a), Fact(False, KNOWN),
+                           "Pos FFFFFF, which comes with N, V, A 0", "readback-unhomed")
             return True
         if k.homed.value is False and k.homed.status == KNOWN and k.mode == _MODE_1 and not unknown:
-            self._readback(found, "0RC", shown, k.homed,
+            self._readback(found, "0RC", _shown(a), k.homed,
                            "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)",
                            "readback-unhomed")
             return True
@@ -1040,6 +1039,11 @@ class Conversation:
                 return t + motion.move_time(far, s.point_speed(1), 1)
             return t + motion.move_time(point.pos - start, s.point_speed(point.v), point.a)
         return t
+
+
+def _shown(a: ReadCurrentAnswer) -> str:
+    """A 0RC answer's fields as a read-back sentence shows them (made only for a violation)."""
+    return f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}"
 
 
 _MODE_1: Final = Fact(1, KNOWN)
