@@ -451,19 +451,15 @@ class Conversation:
         if type(raw) is not bytes:
             raw = bytes(raw)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
-        found = [*self._graded(violations)]
+        found = [*violations] if self.readings == rules.DEFAULT_READINGS else [*self._graded(violations)]
         if self.one_way:  # no command can be in the data: only what the answer's own bytes show
             out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), None, None,
                                  t_first, t_last, None)))
             return out
-        if self._late is None:
-            line, skipped = self._pair(header, t_first)
-        else:
-            line, skipped = self._late_or_pair(header, t_first, found)
-        if skipped:
-            out += [self._no_answer(w, t_first, skipped_by=i) for w in skipped if w.owed]
-        if line is None:
-            found.append(self._v("unsolicited-answer", sentences.unsolicited_answer, header))
+        line, skipped = self._pair(header, t_first) if self._late is None \
+            else self._late_or_pair(header, t_first, found)
+        if skipped or line is None:
+            out += self._mispaired(line, skipped, header, t_first, i, found)
         self._judge_answer(line, header, frame, found)
         out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found),
                              None if line is None else line.i, _latency(line, t_first), t_first, t_last,
@@ -621,13 +617,23 @@ class Conversation:
         """The line an answer belongs to, and the lines it shows were skipped (module docstring): the
         first line of its header sent before the answer began (a line discarded during a move only when
         it alone waits); the usual answer is the head's, nothing skipped."""
+        if header is None or header == _ALARM:  # fits any line: no line's own
+            return self._pair_past(None, header)
         queue = self._queue
-        chosen = self._line_of(header, t) if queue and header is not None and header != _ALARM else None
-        if chosen is not None and chosen is queue[0]:
-            queue.popleft()
-            self._end_motion(chosen)
-            return chosen, _NOTHING_SKIPPED
-        return self._pair_past(chosen, header)
+        line = queue.take_own_answer(header, t)
+        if line is not None:
+            if line is self._motion:
+                self._motion = None
+            return line, _NOTHING_SKIPPED
+        return self._pair_past(self._line_of(header, t) if queue else None, header)
+
+    def _mispaired(self, line: WaitingLine | None, skipped: list[WaitingLine] | tuple[()], header: str | None,
+                   t: float | None, i: int, found: list[Violation]) -> list[Verdict]:
+        """What answer ``i``'s pairing shows went wrong: ``no-answer`` for each line it skipped that was
+        owed an answer; ``unsolicited-answer`` (into ``found``) when it pairs with no line."""
+        if line is None:
+            found.append(self._v("unsolicited-answer", sentences.unsolicited_answer, header))
+        return [self._no_answer(w, t, skipped_by=i) for w in skipped if w.owed]
 
     def _line_of(self, header: str, t: float | None) -> WaitingLine | None:
         """The first waiting line of ``header`` sent before ``t`` (a discarded one only when alone)."""
@@ -982,13 +988,12 @@ class Conversation:
         is known not homed in mode 1. True when found."""
         k = self.knowledge
         unknown = a.pos == spec.UNKNOWN_POSITION
-        shown = f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}"
         if unknown and (a.n, a.v, a.a) != (0, 0, 0):
-            self._readback(found, "0RC", shown, Fact(False, KNOWN), "Pos FFFFFF, which comes with N, V, A 0",
-                           "readback-unhomed")
+            self._readback(found, "0RC", _shown(a), Fact(False, KNOWN),
+                           "Pos FFFFFF, which comes with N, V, A 0", "readback-unhomed")
             return True
         if k.homed.value is False and k.homed.status == KNOWN and k.mode == _MODE_1 and not unknown:
-            self._readback(found, "0RC", shown, k.homed,
+            self._readback(found, "0RC", _shown(a), k.homed,
                            "the axis not homed (0RC then answers N, V, A 0 and Pos FFFFFF)",
                            "readback-unhomed")
             return True
@@ -1043,6 +1048,11 @@ class Conversation:
 def _far_from(pos: int) -> int:
     """The longest distance a move from (or to) ``pos`` can cover within the stroke."""
     return max(pos, STROKE_END - pos)
+
+
+def _shown(a: ReadCurrentAnswer) -> str:
+    """A 0RC answer's fields as a read-back sentence shows them (made only for a violation)."""
+    return f"N={a.n:X} V={a.v} A={a.a} Pos={a.pos:06X}"
 
 
 _MODE_1: Final = Fact(1, KNOWN)

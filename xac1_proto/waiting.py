@@ -39,7 +39,7 @@ class WaitingLine:
     move whose window rests only on the guessed speed table (silent items 15, 17)."""
 
     __slots__ = ("i", "kind", "header", "frame", "t_last", "deadline", "waited_s", "overlapped", "is_move",
-                 "harmless", "junk", "guessed", "owed", "is_reset")
+                 "plain", "junk", "on_guess", "is_reset")
 
     def __init__(self, i: int, kind: str, header: str | None, frame: Frame | None, t_last: float | None,
                  waited_s: float, overlapped: bool = False, is_move: bool = False, plain: bool = False,
@@ -53,11 +53,27 @@ class WaitingLine:
         self.waited_s = waited_s
         self.overlapped = overlapped
         self.is_move = is_move
-        self.harmless = plain and kind == COMMAND and header in RAISES_NO_ALARM
+        self.plain = plain  # read with no deviation at all
         self.junk = junk
-        self.guessed = is_move and guessed
-        self.owed = kind != DISCARD and not overlapped  # does silence to it break a rule (no-answer)?
+        self.on_guess = guessed  # its window, were it a move's, rests on the guessed speed table
         self.is_reset = kind == COMMAND and header == spec.RESET_HEADER  # a well-formed alarm reset (0%C)?
+
+    # (asked only when something went wrong: worked out then, not for every line)
+
+    @property
+    def harmless(self) -> bool:
+        """A command of ``RAISES_NO_ALARM`` read with no deviation, not discarded (class docstring)?"""
+        return self.plain and self.kind == COMMAND and self.header in RAISES_NO_ALARM
+
+    @property
+    def guessed(self) -> bool:
+        """A move whose window rests only on the guessed speed table?"""
+        return self.is_move and self.on_guess
+
+    @property
+    def owed(self) -> bool:
+        """Does silence to it break a rule (no-answer)?"""
+        return self.kind != DISCARD and not self.overlapped
 
     def name(self) -> str:
         return f"{self.header or 'line'} #{self.i}"
@@ -91,6 +107,18 @@ class Waiting(deque[WaitingLine]):
         elif line.deadline == self.due:
             self._recount()
         return line
+
+    def take_own_answer(self, header: str, t: float | None) -> WaitingLine | None:
+        """The head line, taken out, when an answer of ``header`` (a command's, not an alarm) begun at
+        ``t`` is its own: of its header, sent before ``t``, not discarded during a move unless it alone
+        waits. None when the answer is not the head's (the engine then looks further down the queue)."""
+        head = self[0] if self else None
+        if head is None or head.header != header:
+            return None
+        if (t is not None and head.t_last is not None and head.t_last > t) \
+                or (head.kind == DISCARD and len(self) > 1):
+            return None
+        return self.popleft()
 
     def clear(self) -> None:
         super().clear()
