@@ -118,7 +118,7 @@ _UNSEEN: Final[dict[LatchEvent, Transition]] = {  # the release may have happene
     E.NORMAL: Transition(None, _K.RELEASED),
     E.OTHER: Transition(None, _K.FORGET_STOP),
     E.NOTHING: Transition(None, _K.FORGET_STOP),
-    E.CLEARED_BACK: Transition("stop-alarm-back", _K.FORGET_STOP),
+    E.CLEARED_BACK: Transition(None, _K.FORGET_STOP),  # new, perhaps: raised after the unseen release
     E.RESET_REFUSED: Transition("reset-refused", _K.FORGET_STOP),
     E.RESET_NOTHING: Transition("reset-refused", _K.FORGET_STOP),
     E.RESET_DONE: Transition(None, _K.CLEARED_RELEASED),
