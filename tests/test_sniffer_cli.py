@@ -375,10 +375,11 @@ def test_sniff_tap_that_is_a_directory(tmp_path):
 
 SIGNAL_IN_IMPORT = """
 import importlib.metadata, os, signal, sys
-module = sys.argv[1]
+package, name = sys.argv[1].rsplit("/", 1)
+files = (f"/{package}/{name}.", f"/{package}/__pycache__/{name}.")  # its source, or its cached bytecode
 fired = []
 def hook(event, args):  # the module's file being opened to import it: the signal lands in the import
-    if event == "open" and f"/{module}." in str(args[0]) and not fired:
+    if event == "open" and any(f in str(args[0]) for f in files) and not fired:
         fired.append(1)
         os.kill(os.getpid(), signal.SIGTERM)
 sys.addaudithook(hook)
