@@ -75,12 +75,11 @@ class Analyzer:
         appended to ``out`` (an exception, Ctrl-C included, loses none of the chunks taken); ``out`` None:
         no records are made, the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
 
-        Each chunk, in one loop body: its bytes are framed by its line's framer and judged, time passing
-        to its time first. The usual chunk, one whole frame with nothing pending on its line, the framer
-        takes at once (``Framer.take_frame``) and the engine passes time to its arrival itself: time is
-        passed here first only while a device line is arriving (it may have stalled). Any other chunk:
-        time passes to its time, then the framer buffers and cuts its bytes (a device line's partial
-        frame keeps the time it began: an answer that starts in time is in time)."""
+        Each chunk, in one loop body: time passes to its time first, whatever its cut (a window that
+        closed is closed, and a stalled device line is flushed: ``_tick``); then its bytes are framed by
+        its line's framer and judged. The usual chunk, one whole frame with nothing pending on its line,
+        the framer takes at once (``Framer.take_frame``); any other chunk the framer buffers and cuts (a
+        device line's partial frame keeps the time it began: an answer that starts in time is in time)."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
         framers, judge, tick = self._framers, self._judge, self._tick
