@@ -459,4 +459,4 @@ def test_decode_speed_table_option_makes_the_move_window_firm(tmp_path):
     assert judged("--speed-table", "1000:500:10000") == [("no-answer", "error"),
                                                          ("unsolicited-answer", "error")]
     bad = xac1("decode", str(path), "--speed-table", "fast")
-    assert bad.returncode == 2 and "--speed-table" in bad.stderr
+    assert bad.returncode == 2 and "argument --speed-table: expected V:VEL:HOMING" in bad.stderr  # named once

@@ -25,7 +25,7 @@ def _speed_table(text: str) -> motion.SpeedTable:
     try:
         return motion.SpeedTable.parse(text)
     except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"--speed-table: {exc}") from None
+        raise argparse.ArgumentTypeError(str(exc)) from None  # argparse names the option
 
 
 def add_speed_table_option(parser: argparse.ArgumentParser) -> None:
