@@ -53,9 +53,11 @@ class Analyzer:
         self.device_idle_flush = device_idle_flush
         self.tally = Tally()
         self._framers: dict[str, Framer] = {HOST: Framer(), DEVICE: Framer()}
+        self._engine_frame = {HOST: self.conversation.host_frame, DEVICE: self.conversation.device_frame}
         self._errors: dict[str, list[tuple[int, int, str]]] = {HOST: [], DEVICE: []}
         self._device_since: float | None = None  # time of the oldest pending device byte
-        self._device_last: float | None = None  # time of the latest device chunk
+        self._device_partial = False  # device bytes wait in the framer (a frame still arriving)
+        self._device_last: float | None = None  # time of the latest device chunk the framer cut
         self._closed = False
         self._judged: list[Verdict] = []  # verdicts not yet counted
         self._notes: dict[int, tuple[tuple[str, ...], str]] = {}  # index in _judged -> line errors, reason
@@ -75,14 +77,17 @@ class Analyzer:
         appended to ``out`` (an exception, Ctrl-C included, loses none of the chunks taken); ``out`` None:
         no records are made, the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
 
-        Each chunk, in one loop body: time passes to its time first, whatever its cut (a window that
-        closed is closed, and a stalled device line is flushed: ``_tick``); then its bytes are framed by
-        its line's framer and judged. The usual chunk, one whole frame with nothing pending on its line,
-        the framer takes at once (``Framer.take_frame``); any other chunk the framer buffers and cuts (a
-        device line's partial frame keeps the time it began: an answer that starts in time is in time)."""
+        Each chunk, in one loop body: its bytes are framed by its line's framer, and every frame and junk
+        run goes to the engine (``_frame``, ``_junk``), with time passing to the chunk's time first,
+        whatever its cut (a window that closed is closed, and a stalled device line is flushed). The usual
+        chunk is one whole frame with nothing pending on either line: the framer takes it at once
+        (``Framer.take_frame``), and the frame's arrival passes time in the engine (``host_frame`` and
+        ``device_frame`` tick to their first byte's time). Any other chunk the framer buffers and cuts,
+        and time passes first (``_tick``; a device line's partial frame keeps the time it began: an answer
+        that starts in time is in time)."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        framers, judge, tick = self._framers, self._judge, self._tick
+        framers, frame, tick, judged = self._framers, self._frame, self._tick, self._judged
         device_framer = framers[DEVICE]
         taken = size = 0
         try:
@@ -95,29 +100,35 @@ class Analyzer:
                 if error and data:
                     self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
                 offset = framer.take_frame(data)
-                if t is not None:  # time passes first, whatever the cut: a closed window is closed
-                    tick(t)
-                if offset is not None:
-                    events: list[FrameBytes | Junk] = [FrameBytes(bytes(data), offset, t, t)]
-                elif framer is device_framer and data:
-                    pending_before = framer.pending
-                    events = framer.feed(data, t)
-                    if not framer.pending:
-                        self._device_since = None
-                    elif not pending_before:
-                        self._device_since = t  # else keep the older time: never expire too early
-                else:
-                    events = framer.feed(data, t)
-                if framer is device_framer and data:
-                    self._device_last = t
-                if events:
-                    judge(direction, events)
+                if offset is None:
+                    if t is not None:  # time passes first, whatever the cut: a closed window is closed
+                        tick(t)
+                    self._cut(framer, direction, data, t)
+                else:  # (a device line's partial frame is still arriving: its time passes first too)
+                    if t is not None and self._device_partial:
+                        tick(t)
+                    frame(direction, data, offset, t, t)
                 size += len(data)
-                if size >= FEED_BYTES or len(self._judged) >= FEED_VERDICTS:  # memory stays bounded
+                if size >= FEED_BYTES or len(judged) >= FEED_VERDICTS:  # memory stays bounded
                     break
         finally:
             self._emit(out)
         return taken
+
+    def _cut(self, framer: Framer, direction: Direction, data: bytes, t: float | None) -> None:
+        """Bytes that are not one whole frame: the framer buffers and cuts them; their events go to the
+        engine. A device line's partial frame keeps the time it began (``_device_since``)."""
+        pending_before = framer.pending
+        events = framer.feed(data, t)
+        if direction == DEVICE and data:
+            self._device_last = t
+            self._device_partial = bool(framer.pending)
+            if not framer.pending:
+                self._device_since = None
+            elif not pending_before:
+                self._device_since = t  # else keep the older time: never expire too early
+        if events:
+            self._judge(direction, events)
 
     def tick(self, now: float) -> list[Record]:
         """Time passes to ``now`` (unix seconds): missed answers and stalled device frames come out."""
@@ -132,7 +143,7 @@ class Analyzer:
         framer = self._framers[DEVICE]
         flush, last = self.device_idle_flush, self._device_last
         if flush is not None and last is not None and now - last >= flush and framer.pending:
-            self._device_since = None
+            self._device_since, self._device_partial = None, False
             self._judge(DEVICE, framer.flush())
         verdicts = self.conversation.tick(now, self._device_since)
         if verdicts:
@@ -154,7 +165,7 @@ class Analyzer:
                     self._judge_cut(direction, events[-1])
                 else:
                     self._judge(direction, events)
-            self._device_since = None
+            self._device_since, self._device_partial = None, False
             self._judged += self.conversation.close(now)
         finally:
             self._emit(out)
@@ -183,26 +194,38 @@ class Analyzer:
     # ---- events to the engine, verdicts to the tally and to records ----
 
     def _judge(self, direction: str, events: list[FrameBytes | Junk]) -> None:
-        """The engine's verdicts on one line's events, each kept with the line errors of its bytes and the
-        framer's reason (junk) until ``_emit``."""
-        c = self.conversation
-        judged, notes = self._judged, self._notes
-        flagged = self._errors[direction]
-        host = direction == HOST
+        """One line's events, in order, to the engine."""
         for event in events:
             if type(event) is FrameBytes:
-                reason = ""
-                verdicts = (c.host_frame if host else c.device_frame)(event.raw, event.t_first, event.t_last)
+                self._frame(direction, event.raw, event.offset, event.t_first, event.t_last)
             else:
-                reason = event.reason  # type: ignore[union-attr]
-                if host:
-                    verdicts = c.host_junk(event.raw, event.t_first, event.t_last)
-                else:  # a flushed partial line may be an answer
-                    verdicts = c.device_junk(event.raw, event.t_first, event.t_last, reason == "flushed")
-            errors = self._line_errors(direction, event.offset, len(event.raw)) if flagged else ()
-            if errors or reason:
-                notes.update(dict.fromkeys(range(len(judged), len(judged) + len(verdicts)), (errors, reason)))
-            judged += verdicts
+                self._junk(direction, event)  # type: ignore[arg-type]
+
+    def _frame(self, direction: str, raw: bytes, offset: int, t_first: float | None,
+               t_last: float | None) -> None:
+        """A frame to the engine: its verdicts kept, with the line errors of its bytes, until ``_emit``."""
+        verdicts = self._engine_frame[direction](raw, t_first, t_last)
+        if self._errors[direction]:
+            self._note(verdicts, self._line_errors(direction, offset, len(raw)), "")
+        self._judged += verdicts
+
+    def _junk(self, direction: str, event: Junk) -> None:
+        """A junk run to the engine: its verdicts kept, with the line errors of its bytes and the framer's
+        reason, until ``_emit``."""
+        c = self.conversation
+        if direction == HOST:
+            verdicts = c.host_junk(event.raw, event.t_first, event.t_last)
+        else:  # a flushed partial line may be an answer
+            verdicts = c.device_junk(event.raw, event.t_first, event.t_last, event.reason == "flushed")
+        errors = self._line_errors(direction, event.offset, len(event.raw)) if self._errors[direction] else ()
+        self._note(verdicts, errors, event.reason)
+        self._judged += verdicts
+
+    def _note(self, verdicts: list[Verdict], errors: tuple[str, ...], reason: str) -> None:
+        """Keep the line errors and junk reason of the verdicts about to be judged (when there are any)."""
+        if errors or reason:
+            k = len(self._judged)
+            self._notes.update(dict.fromkeys(range(k, k + len(verdicts)), (errors, reason)))
 
     def _emit(self, out: list[Record] | None) -> None:
         """The verdicts judged since the last call: counted, and made records into ``out`` (None: none)."""
@@ -222,10 +245,8 @@ class Analyzer:
     def _judge_cut(self, direction: Direction, event: FrameBytes | Junk) -> None:
         """The data ended inside this frame: the engine's verdict that says so (no violation)."""
         verdicts = self.conversation.ended_inside_frame(direction, event.raw, event.t_first, event.t_last)
-        errors = self._line_errors(direction, event.offset, len(event.raw)) if self._errors[direction] else ()
-        if errors:
-            self._notes.update(dict.fromkeys(range(len(self._judged), len(self._judged) + len(verdicts)),
-                                             (errors, "")))
+        if self._errors[direction]:
+            self._note(verdicts, self._line_errors(direction, event.offset, len(event.raw)), "")
         self._judged += verdicts
 
     def _line_errors(self, direction: str, offset: int, length: int) -> tuple[str, ...]:

@@ -18,6 +18,7 @@ from typing import Any, NamedTuple, Protocol
 
 from xac1_proto import Frame, spec
 from xac1_proto.chunk import Direction
+from xac1_proto.conversation import side_of
 
 
 def field_names(cls: type[Frame]) -> tuple[str, ...]:
@@ -266,11 +267,9 @@ class Counted(Protocol):
     @property
     def latency_s(self) -> float | None: ...
     @property
-    def violations(self) -> tuple[object, ...]: ...  # empty when clean (then codes and sides are not read)
+    def violations(self) -> tuple[Any, ...]: ...  # each with its ``code``; empty when clean
     @property
-    def codes(self) -> tuple[str, ...]: ...
-    @property
-    def sides(self) -> tuple[str, ...]: ...
+    def codes(self) -> tuple[str, ...]: ...  # (read only when several violations: each code once)
 
 
 class _RecordCounted(NamedTuple):
@@ -283,9 +282,8 @@ class _RecordCounted(NamedTuple):
     i: int | None
     reply_to: int | None
     latency_s: float | None
-    violations: tuple[str, ...]
+    violations: tuple[Any, ...]  # (none: ``add`` counts a record's violations by its own sides)
     codes: tuple[str, ...]
-    sides: tuple[str, ...]
 
 
 class Tally:
@@ -307,31 +305,37 @@ class Tally:
     def add(self, record: Record) -> None:
         """Count one record."""
         codes = tuple(record.violations)
-        sides = sides_of(record) if codes else ()
+        if codes:
+            self._count_violations(codes, sides_of(record))
         if isinstance(record, TimeoutRecord):
             self.count([_RecordCounted("no-answer", record.dir, b"", record.header, None, record.command,
-                                       None, codes, codes, sides)])
+                                       None, (), ())])
             return
         if isinstance(record, FrameRecord):
             kind, header = f"{record.dir}-frame", record.header
         else:
             kind, header = ("cut" if record.reason == CAPTURE_ENDED else f"{record.dir}-junk"), None
         self.count([_RecordCounted(kind, record.dir, record.raw, header, record.i, record.reply_to,
-                                   record.latency_s, codes, codes, sides)], bool(record.line_errors))
+                                   record.latency_s, (), ())], bool(record.line_errors))
 
     def count(self, seen: Iterable[Counted], line_errors: int = 0) -> None:
         """Count frames, junk runs, frames the data ended inside and missed answers (``Counted``), of which
         ``line_errors`` carry a line error on their bytes: commands by header, answers by header with their
-        latency by the command's header, violations by side. (One pass with locals, over plain dicts and
-        lists, whose operations are the interpreter's fast ones, a ``Counter``'s += is not; the latencies go
-        to their ``LatencyStats`` a batch at a time.)"""
+        latency by the command's header, violations by code and side. (One pass with locals, over plain
+        dicts and lists, whose operations are the interpreter's fast ones, a ``Counter``'s += is not; the
+        violations are counted a batch at a time by who sent them and the codes found, few distinct
+        pairs however many verdicts: a misbehaving host repeats its violations; the latencies go to their
+        ``LatencyStats`` a batch at a time.)"""
         commands, answers, headers = self.commands, self.answers, self._headers
         latencies: defaultdict[str, list[float]] = defaultdict(list)
         host_bytes = device_bytes = junk = 0
+        found: dict[tuple[str, ...], int] = {}  # (sender, code, ...) -> verdicts
         for v in seen:
             kind = v.kind
-            if v.violations:
-                self._count_violations(v.codes, v.sides)
+            violations = v.violations
+            if violations:
+                key = (v.sender, violations[0].code) if len(violations) == 1 else (v.sender, *v.codes)
+                found[key] = found.get(key, 0) + 1
             if kind == "host-frame":
                 host_bytes += len(v.raw)
                 header = v.header or "?"
@@ -364,6 +368,10 @@ class Tally:
             if stats is None:
                 stats = self.latencies[command] = LatencyStats()
             stats.extend(seconds)
+        for (sender, *codes), n in found.items():
+            for code in codes:
+                self.codes[code] += n
+                self.by_side[side_of(code, sender)][code] += n  # type: ignore[arg-type]
 
     def _count_violations(self, codes: tuple[str, ...], sides: tuple[str, ...]) -> None:
         self.codes.update(codes)

@@ -407,7 +407,12 @@ class Conversation:
                    window: float | None = None) -> list[Verdict]:
         """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
         for its answer, when it says so (the client); else the engine's answer window."""
-        out = [] if t_first is None else self.tick(t_first, self._answer_began)
+        out: list[Verdict] = []
+        if t_first is not None:  # time passes to it (``tick``, inline: the usual frame closes no window)
+            if self._queue.due < t_first:
+                out = self.tick(t_first, self._answer_began)
+            elif self._last_t is None or t_first > self._last_t:
+                self._last_t = t_first
         i = self._next_i
         self._next_i = i + 1
         if type(raw) is not bytes:
@@ -444,7 +449,12 @@ class Conversation:
                      t_last: float | None = None) -> list[Verdict]:
         """A frame-shaped device line: an answer. Its arrival passes time to ``t_first``: lines whose
         window closed before it began get ``no-answer`` (``tick``; an answer in time is in time)."""
-        out = [] if t_first is None else self.tick(t_first, t_first)
+        out: list[Verdict] = []
+        if t_first is not None:  # time passes to it (``tick``, inline: the usual frame closes no window)
+            if self._queue.due < t_first:
+                out = self.tick(t_first, t_first)
+            elif self._last_t is None or t_first > self._last_t:
+                self._last_t = t_first
         self._answer_began = None
         i = self._next_i
         self._next_i = i + 1
@@ -461,9 +471,13 @@ class Conversation:
         if skipped or line is None:
             out += self._mispaired(line, skipped, header, t_first, i, found)
         self._judge_answer(line, header, frame, found)
-        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found),
-                             None if line is None else line.i, _latency(line, t_first), t_first, t_last,
-                             None)))
+        if line is None:
+            reply_to = latency = None
+        else:
+            reply_to = line.i
+            latency = None if t_first is None or line.t_last is None else t_first - line.t_last
+        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), reply_to, latency,
+                             t_first, t_last, None)))
         return out
 
     def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -577,7 +591,8 @@ class Conversation:
         if self._motion is not None or self._queue:
             kind, overlapped = self._sent_while_waiting(kind, header, t_last, found)
         move = frame if kind == COMMAND and header in spec.MOVE_HEADERS else None
-        waited_s, guessed = self._window_for(move, window)
+        waited_s, guessed = (window, False) if window is not None \
+            else (self.no_answer_timeout, False) if move is None else self._move_window(move)
         line = WaitingLine(i, kind, header, frame, t_last, waited_s, overlapped, move is not None, plain,
                            junk, guessed)
         if self.one_way:  # its answer cannot be in the data: counted, not kept
@@ -588,13 +603,9 @@ class Conversation:
             self._motion = line
         return line
 
-    def _window_for(self, move: Frame | None, window: float | None) -> tuple[float, bool]:
-        """A line's answer window, and whether it rests on the guessed speed table: ``window`` when the
-        host says how long it waits (the client), a move's (``answer_window``), else the timeout."""
-        if window is not None:
-            return window, False
-        if move is None:
-            return self.no_answer_timeout, False
+    def _move_window(self, move: Frame) -> tuple[float, bool]:
+        """A move's answer window (``answer_window``), and whether it rests on the guessed speed table (a
+        line's window is the host's when it says how long it waits, the client; else the plain timeout)."""
         return self.answer_window(move), self.speeds.guessed
 
     def _sent_while_waiting(self, kind: str, header: str | None, t_last: float | None,

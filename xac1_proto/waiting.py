@@ -3,8 +3,9 @@
 
 How this works: the engine (``conversation``) queues each host line it owes an answer to as a
 ``WaitingLine`` with its ``deadline`` (its last byte + its answer window; None without time). ``Waiting``
-holds them in order and keeps the earliest deadline at hand (``due``), so asking whether time passing
-closes a window is one comparison while nothing can close (the sniffer asks before every chunk).
+holds them in order with a time before which no window can close at hand (``due``: at most the earliest
+deadline; a line's leaving does not raise it, ``closed`` makes it exact), so asking whether time passing
+closes a window is one comparison while nothing can close (every frame asks).
 ``closed(now, since)`` is the only judgement of a closed window: a line whose deadline is before ``now``
 is closed, unless an answer began at ``since`` within the head's window (an answer that starts in time
 is in time); ``open_at(line, t)`` is its inverse for one line. No clock: times come in.
@@ -80,15 +81,16 @@ class WaitingLine:
 
 
 class Waiting(deque[WaitingLine]):
-    """The lines waiting for their answers, first sent first (a deque), with the earliest deadline at
-    hand (``due``). Lines enter by ``append`` and leave by ``popleft``, ``clear`` or ``keep``, which keep
-    ``due``."""
+    """The lines waiting for their answers, first sent first (a deque), with ``due`` at hand: no window
+    closes before it (at most the earliest deadline). Lines enter by ``append``, which lowers ``due``, and
+    leave by ``popleft`` (the deque's own: ``due`` stays where it was, still a time no window closes
+    before), ``clear`` or ``keep``."""
 
     __slots__ = ("due",)
 
     def __init__(self) -> None:
         super().__init__()
-        self.due = _NEVER  # the earliest deadline among the lines (inf: none can close)
+        self.due = _NEVER  # no window closes before it (inf: none can)
 
     @property
     def head(self) -> WaitingLine | None:
@@ -100,14 +102,6 @@ class Waiting(deque[WaitingLine]):
         if line.deadline is not None and line.deadline < self.due:
             self.due = line.deadline
 
-    def popleft(self) -> WaitingLine:
-        line = super().popleft()
-        if not self:
-            self.due = _NEVER
-        elif line.deadline == self.due:
-            self._recount()
-        return line
-
     def take_own_answer(self, header: str, t: float | None) -> WaitingLine | None:
         """The head line, taken out, when an answer of ``header`` (a command's, not an alarm) begun at
         ``t`` is its own: of its header, sent before ``t``, not discarded during a move unless it alone
@@ -118,7 +112,10 @@ class Waiting(deque[WaitingLine]):
         if (t is not None and head.t_last is not None and head.t_last > t) \
                 or (head.kind == DISCARD and len(self) > 1):
             return None
-        return self.popleft()
+        self.popleft()
+        if not self:  # the usual answer: no line waits now, no window can close
+            self.due = _NEVER
+        return head
 
     def clear(self) -> None:
         super().clear()
@@ -148,6 +145,9 @@ class Waiting(deque[WaitingLine]):
         """The lines whose window closed before ``now``, taken out of the queue in order. ``since``: an
         answer began then and is still arriving; begun within the head's window, it closes nothing."""
         if not self.due < now:
+            return []
+        if not self:  # the lines that set ``due`` have left
+            self.due = _NEVER
             return []
         head = self[0]
         if since is not None and head.deadline is not None and since <= head.deadline:
