@@ -88,7 +88,6 @@ class Analyzer:
         if self._closed:
             raise RuntimeError("the analyzer is closed")
         framers, frame, tick, judged = self._framers, self._frame, self._tick, self._judged
-        device_framer = framers[DEVICE]
         taken = size = 0
         try:
             for chunk in islice(chunks, limit):
