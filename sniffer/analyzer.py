@@ -77,17 +77,19 @@ class Analyzer:
         appended to ``out`` (an exception, Ctrl-C included, loses none of the chunks taken); ``out`` None:
         no records are made, the verdicts are counted (the summary). Returns the chunks taken: 0 at the end.
 
-        Each chunk, in one loop body: its bytes are framed by its line's framer, and every frame and junk
-        run goes to the engine (``_frame``, ``_junk``), with time passing to the chunk's time first,
-        whatever its cut (a window that closed is closed, and a stalled device line is flushed). The usual
-        chunk is one whole frame with nothing pending on either line: the framer takes it at once
-        (``Framer.take_frame``), and the frame's arrival passes time in the engine (``host_frame`` and
-        ``device_frame`` tick to their first byte's time). Any other chunk the framer buffers and cuts,
-        and time passes first (``_tick``; a device line's partial frame keeps the time it began: an answer
-        that starts in time is in time)."""
+        Each chunk, in one loop body: its bytes are framed by its line's framer, each frame goes to the
+        engine's ``host_frame`` or ``device_frame`` and each junk run to its ``host_junk`` or
+        ``device_junk``, with time passing to the chunk's time first, whatever its cut (a window that
+        closed is closed, and a stalled device line is flushed). The usual chunk is one whole frame, with
+        nothing pending on its line and no line error: the framer takes it at once
+        (``Framer.take_frame``) and its arrival passes time in the engine (a frame's event ticks to its
+        first byte's time; while a device frame is still arriving, ``_tick`` first: its start keeps its
+        window open). Any other chunk the framer buffers and cuts (``_cut``), time passing first
+        (``_tick``); the frames and junk runs it cuts carry the line errors of their bytes and the junk's
+        reason (``_frame``, ``_junk``)."""
         if self._closed:
             raise RuntimeError("the analyzer is closed")
-        framers, frame, tick, judged = self._framers, self._frame, self._tick, self._judged
+        framers, engine_frame, tick, judged = self._framers, self._engine_frame, self._tick, self._judged
         taken = size = 0
         try:
             for chunk in islice(chunks, limit):
@@ -98,15 +100,14 @@ class Analyzer:
                     raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")
                 if error and data:
                     self._errors[direction].append((framer.bytes_in, framer.bytes_in + len(data), error))
-                offset = framer.take_frame(data)
-                if offset is None:
+                if error or framer.take_frame(data) is None:  # (flagged bytes: their errors are noted)
                     if t is not None:  # time passes first, whatever the cut: a closed window is closed
                         tick(t)
                     self._cut(framer, direction, data, t)
-                else:  # (a device line's partial frame is still arriving: its time passes first too)
+                else:  # one whole frame (a device line's partial frame still arriving: its time first)
                     if t is not None and self._device_partial:
                         tick(t)
-                    frame(direction, data, offset, t, t)
+                    judged += engine_frame[direction](data, t, t)
                 size += len(data)
                 if size >= FEED_BYTES or len(judged) >= FEED_VERDICTS:  # memory stays bounded
                     break

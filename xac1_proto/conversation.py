@@ -60,7 +60,7 @@ from typing import Final, Generic, Literal, NamedTuple, TypeVar
 
 from . import motion, rules, sentences, spec
 from .codec import Reading, header_of, read_frame
-from .errors import Violation
+from .errors import Violation, violation_of
 from .frames import (
     AlarmReset,
     Frame,
@@ -288,6 +288,7 @@ class Conversation:
         self.unanswerable = 0  # one way: host lines owed an answer the data cannot hold (counted, not kept)
         self.readings = readings
         self._severity = rules.severities(readings)
+        self._codes = {rule: row.code for rule, row in rules.RULES.items()}  # each rule's violation code
         self.no_answer_timeout = no_answer_timeout
         self.storm_limit = storm_limit
         self.speeds = speeds
@@ -306,7 +307,7 @@ class Conversation:
     def _v(self, rule: str, sentence: Callable[..., str], *values: object) -> Violation:
         """A conversation-level violation of ``rule`` (``rules.RULES``) under this conversation's
         readings; its sentence is ``sentence(*values)``, made only when shown."""
-        return Violation.said(rules.RULES[rule].code, rule, self._severity[rule], sentence, *values)
+        return violation_of((self._codes[rule], None, rule, self._severity[rule], None, sentence, values))
 
     def _regraded(self, reading: Reading) -> Reading:
         """The decoder's reading of a host line (``codec.read_frame``), graded under ``readings``."""
@@ -839,7 +840,8 @@ class Conversation:
         rule, effect = _LATCH_CELLS[(state, event)]
         if rule is not None:
             found.append(self._latch_violation(rule, line, code))
-        effect(self.knowledge)
+        if effect is not None:
+            effect(self.knowledge)
 
     def _latch_violation(self, rule: str, line: WaitingLine | None, code: int | None) -> Violation:
         """The violation of a latch rule, with the values its sentence needs."""
@@ -1118,8 +1120,8 @@ def _release(k: Knowledge) -> None:
     k.under_stop = _NOT_KNOWN
 
 
-_LATCH_EFFECTS: Final[dict[Effect, Callable[[Knowledge], None]]] = {
-    Effect.KEEP: lambda k: None,
+_LATCH_EFFECTS: Final[dict[Effect, Callable[[Knowledge], None] | None]] = {
+    Effect.KEEP: None,  # (nothing to apply)
     Effect.STOP_OVER: _stop_over,
     Effect.STOP_OVER_RESET: _stop_over_reset,
     Effect.CLEAR_UNDER_STOP: _clear_under_stop,

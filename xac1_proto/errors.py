@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, Final, NamedTuple
 
 if TYPE_CHECKING:
     from .spec import Severity, ViolationCode
@@ -43,7 +44,7 @@ class Violation(_ViolationFields):
     def said(cls, code: ViolationCode, rule: str, severity: Severity, sentence: Callable[..., str],
              *values: Any, offset: int | None = None) -> Violation:
         """A violation whose sentence is ``sentence(*values)``, made only when ``message`` is read."""
-        return tuple.__new__(cls, (code, offset, rule, severity, None, sentence, values))
+        return violation_of((code, offset, rule, severity, None, sentence, values))
 
     @property
     def message(self) -> str:
@@ -140,3 +141,8 @@ class ResponseTimeout(XAC1Error, TimeoutError):
 class CommunicationHalted(XAC1Error):
     """The vendor's host duty: after too many communication-error answers in a row the client refuses
     to send until ``rearm()`` (docs/protocol.md "Behaviour the vendor text states")."""
+
+
+# a violation from its fields in order (code, offset, rule, severity, text, sentence, values), as ``said``
+# makes it, with no Python frame of its own (the engine makes two an exchange of a misbehaving host)
+violation_of: Final[Callable[[tuple[Any, ...]], Violation]] = functools.partial(tuple.__new__, Violation)

@@ -163,6 +163,8 @@ ALARM_EVENTS: Final[dict[LatchEvent, EventKind]] = {
 class StormState(Enum):
     """Where the host stands in a run of communication-error answers (``0%%01``)."""
 
+    __hash__ = object.__hash__  # members are unique: hashed by identity, as they compare
+
     CALM = "below the storm limit"
     STORM = "the run reached the storm limit: the host must stop (vendor §6 caution)"
     RECOVERING = "at the limit, the last answer was 0%C00 to the host's reset"
