@@ -104,13 +104,13 @@ class Analyzer:
                     if t is not None:  # time passes first, whatever the cut: a closed window is closed
                         tick(t)
                     self._cut(framer, direction, data, t)
+                    size += len(data)
+                    if size >= FEED_BYTES or len(judged) >= FEED_VERDICTS:  # memory stays bounded (a
+                        break  # whole frame is at most MAX_FRAME bytes and a verdict or few)
                 else:  # one whole frame (a device line's partial frame still arriving: its time first)
                     if t is not None and self._device_partial:
                         tick(t)
                     judged += engine_frame[direction](data, t, t)
-                size += len(data)
-                if size >= FEED_BYTES or len(judged) >= FEED_VERDICTS:  # memory stays bounded
-                    break
         finally:
             self._emit(out)
         return taken
