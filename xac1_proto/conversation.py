@@ -462,7 +462,7 @@ class Conversation:
         if type(raw) is not bytes:
             raw = bytes(raw)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
-        found = [*violations] if self.readings == rules.DEFAULT_READINGS else [*self._graded(violations)]
+        found = [*self._graded(violations)] if violations else []
         if self.one_way:  # no command can be in the data: only what the answer's own bytes show
             out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), None, None,
                                  t_first, t_last, None)))
