@@ -12,6 +12,7 @@ builds them and the views print them.
 from __future__ import annotations
 
 import json
+import operator
 from collections import Counter, defaultdict
 from collections.abc import Iterable
 from typing import Any, NamedTuple, Protocol
@@ -248,6 +249,9 @@ class LatencyStats:
         return {"n": self.n, "min": keys[0] / 1000, "median": round(mid / 1000, 3), "max": keys[-1] / 1000}
 
 
+_code = operator.attrgetter("code")  # a violation's code
+
+
 class Counted(Protocol):
     """What ``Tally.count`` reads of a frame, junk run, frame the data ended inside or missed answer: the
     engine's ``Verdict`` has it all; ``Tally.add`` reads a record as one (``_RecordCounted``)."""
@@ -268,8 +272,6 @@ class Counted(Protocol):
     def latency_s(self) -> float | None: ...
     @property
     def violations(self) -> tuple[Any, ...]: ...  # each with its ``code``; empty when clean
-    @property
-    def codes(self) -> tuple[str, ...]: ...  # (read only when several violations: each code once)
 
 
 class _RecordCounted(NamedTuple):
@@ -283,7 +285,6 @@ class _RecordCounted(NamedTuple):
     reply_to: int | None
     latency_s: float | None
     violations: tuple[Any, ...]  # (none: ``add`` counts a record's violations by its own sides)
-    codes: tuple[str, ...]
 
 
 class Tally:
@@ -309,14 +310,14 @@ class Tally:
             self._count_violations(codes, sides_of(record))
         if isinstance(record, TimeoutRecord):
             self.count([_RecordCounted("no-answer", record.dir, b"", record.header, None, record.command,
-                                       None, (), ())])
+                                       None, ())])
             return
         if isinstance(record, FrameRecord):
             kind, header = f"{record.dir}-frame", record.header
         else:
             kind, header = ("cut" if record.reason == CAPTURE_ENDED else f"{record.dir}-junk"), None
         self.count([_RecordCounted(kind, record.dir, record.raw, header, record.i, record.reply_to,
-                                   record.latency_s, (), ())], bool(record.line_errors))
+                                   record.latency_s, ())], bool(record.line_errors))
 
     def count(self, seen: Iterable[Counted], line_errors: int = 0) -> None:
         """Count frames, junk runs, frames the data ended inside and missed answers (``Counted``), of which
@@ -334,7 +335,8 @@ class Tally:
             kind = v.kind
             violations = v.violations
             if violations:
-                key = (v.sender, violations[0].code) if len(violations) == 1 else (v.sender, *v.codes)
+                key = (v.sender, violations[0].code) if len(violations) == 1 \
+                    else (v.sender, *map(_code, violations))
                 found[key] = found.get(key, 0) + 1
             if kind == "host-frame":
                 host_bytes += len(v.raw)
@@ -369,7 +371,7 @@ class Tally:
                 stats = self.latencies[command] = LatencyStats()
             stats.extend(seconds)
         for (sender, *codes), n in found.items():
-            for code in codes:
+            for code in dict.fromkeys(codes):  # (a verdict's codes, each once)
                 self.codes[code] += n
                 self.by_side[side_of(code, sender)][code] += n  # type: ignore[arg-type]
 

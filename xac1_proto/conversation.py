@@ -799,7 +799,7 @@ class Conversation:
             self._outcome_unknown(line)
             return
         k = self.knowledge
-        k.mode = Fact(1, KNOWN)  # silent item 11: communicating gives mode 1
+        k.mode = _MODE_1  # silent item 11: communicating gives mode 1
         self._reset_in_storm = k.storm_run >= self.storm_limit
         pressed = LatchEvent.RESET_DONE_PRESSED if self._stop_known_pressed() else LatchEvent.RESET_DONE
         self._latch(self.latch_state(), pressed, found, line, None)
@@ -863,7 +863,7 @@ class Conversation:
         """``line`` was answered with an alarm: it took no effect (silent item 18), but a move may have
         stopped anywhere (item 19) and may have homed first ("Alarms": homing after each alarm)."""
         k = self.knowledge
-        k.mode = Fact(1, KNOWN)  # silent item 11: a refused line is communication too
+        k.mode = _MODE_1  # silent item 11: a refused line is communication too
         self._end_motion(line)
         if line.is_move:
             k.position = _NOT_KNOWN
