@@ -67,7 +67,6 @@ _HEADER: Final = re.compile(
 _HEADER_LINE: Final = re.compile(_HEADER.pattern + r"(.*)", re.DOTALL)  # and what follows on the line
 _LONGEST_HEADER: Final = 110  # characters of the longest header line the block matcher takes (CR too)
 _SECONDS: Final = {f"{ss:02d}": ss for ss in range(60)}  # a clean header's seconds
-_MINUTE: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d")  # a clean header's date and minute
 _POWERS: Final = tuple(10 ** n for n in range(13))
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
@@ -132,19 +131,23 @@ def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
 @functools.lru_cache(maxsize=8)
 def _block_matcher(max_line: int, crlf: bool) -> re.Pattern[str]:
     """What ``findall`` cuts a region of whole lines into, each line accounted for (no character skipped):
-    a header as socat writes it (``[0-5]`` seconds, six or nine digits of fraction, two spaces; a CR after
-    it when ``crlf``) with the line after it when that starts with a space (a hex row, its line end
-    excluded); any other line (up to ``max_line`` characters with its line end); or ``max_line``
-    characters of a longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM:SS`` (one string: compared
-    with the header before's; its date and minute checked by ``_MINUTE`` when they change), fraction
-    (with its point), length, from, to, row; the other line; the piece (each group costs ``findall`` a
-    string). A line limit shorter than a header turns the first kind off. (A CR that may end a line costs
-    a tenth of the matching: a file whose first lines end with LF alone is matched without, and its rows
-    up to the LF, ``[^\n]`` being counted much faster than ``[^\r\n]``; a line ending CR LF in it is then
-    another line, read by ``step``, or a row whose CR ``read`` strips where it is not read as hex, as
-    ``_HEX`` reads it with the CR.)"""
-    header = (r"([<>]) (.{16}:[0-5][0-9])(\.[0-9]{6}|\.[0-9]{9})  length=([0-9]{1,18}) from=([0-9]{1,18}) "
-              rf"to=([0-9]{{1,18}})\r?\n(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
+    a header as socat writes it (a date and time of digits, ``[0-5]`` seconds, six or nine digits of
+    fraction, two spaces; a CR after it when ``crlf``) with the line after it when that starts with a
+    space (a hex row, its line end excluded); any other line (up to ``max_line`` characters with its line
+    end); or ``max_line`` characters of a longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM:SS``
+    (one string: compared with the header before's), fraction (with its point), length, from, to, row;
+    the other line; the piece (each group costs ``findall`` a string). The date's and time's digits are
+    each written ``[0-9]``: cheaper to match than a repeat ``[0-9]{4}``, and than a Python call checking
+    them a header (a header whose date is not all digits is another line, read by ``step``). A line
+    limit shorter than a header turns the first kind off. (A CR that may end a line costs a tenth of the
+    matching: a file whose first lines end with LF alone is matched without, and its rows up to the LF,
+    ``[^\n]`` being counted much faster than ``[^\r\n]``; a line ending CR LF in it is then another
+    line, read by ``step``, or a row whose CR ``read`` strips where it is not read as hex, as ``_HEX``
+    reads it with the CR.)"""
+    d = "[0-9]"
+    header = (rf"([<>]) ({d}{d}{d}{d}/{d}{d}/{d}{d} {d}{d}:{d}{d}:[0-5]{d})(\.[0-9]{{6}}|\.[0-9]{{9}})  "
+              rf"length=([0-9]{{1,18}}) from=([0-9]{{1,18}}) to=([0-9]{{1,18}})\r?\n"
+              rf"(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
     if not crlf:
         header = header.replace(r"\r?", "").replace(r"[^\r\n]", r"[^\n]")
     return re.compile(("" if max_line > _LONGEST_HEADER else "(?!)") + header
@@ -253,14 +256,9 @@ class _HeaderClock:
         self.second = ""  # the last header's ``YYYY/MM/DD HH:MM:SS`` that ``at`` read, and its start
         self.second_base = 0.0
 
-    def plain(self, second: str) -> bool:
-        """Is this ``YYYY/MM/DD HH:MM:SS`` of a header as socat writes it one ``at`` reads: the second of
-        the header before, a second of its minute, or a date and minute of digits (``_MINUTE``)?"""
-        return second == self.second or second[:16] == self.minute or _MINUTE.match(second) is not None
-
     def at(self, number: int, second: str, frac: str) -> float | None:
-        """The time of a header as socat writes it (``second`` as ``plain`` takes it, ``frac`` with its
-        point) on line ``number``."""
+        """The time of a header as socat writes it (``second`` as ``_block_matcher`` takes it, digits,
+        ``frac`` with its point) on line ``number``."""
         if second != self.second:
             if second[:16] != self.minute:  # a new minute
                 return self.time(number, second[:10], second[11:], frac[1:])
@@ -355,13 +353,12 @@ class _Transfers:
         module docstring); then the file's last line if it has no line end."""
         findall = _block_matcher(self.src.max_line, b"\r\n" in self.src.head()).findall  # (nothing read yet)
         header, further_row, for_step = self._header_match, self._further_row, self._line_for_step
-        plain = self.clock.plain
         queued = self.queued
         chunk: Chunk | None
         for region in blocks.regions():
             for match in findall(*region):
                 if match[0]:
-                    if self.here and plain(match[1]):  # the transfer before ends (held whole, or finished)
+                    if self.here:  # the transfer before ends (held whole, or finished)
                         chunk, self.held = self.held or self.finish(self.number + 1), None
                         if chunk is not None:
                             yield chunk  # (before anything of the header is said)
@@ -422,8 +419,8 @@ class _Transfers:
         return chunk
 
     def _header_for_step(self, match: tuple[str, ...]) -> None:
-        """A header while -v text is read or a line's pieces go on, or of a date ``plain`` refuses: queued
-        for ``step`` with its row."""
+        """A header while -v text is read or a line's pieces go on: queued for ``step`` with its row (a
+        header whose date is not all digits is no header to ``_block_matcher``: another line for ``step``)."""
         mark, second, frac, length_s, from_s, to_s, row, _, _ = match
         self._line_for_step(f"{mark} {second}{frac}  length={length_s} from={from_s} to={to_s}", "")
         if row:
