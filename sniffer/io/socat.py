@@ -319,6 +319,9 @@ class _Transfers:
     writes it (a header and its hex row, further rows, the ``--`` after a transfer held whole); ``step``
     every other line, and every line while -v text is being read."""
 
+    __slots__ = ("src", "report", "dirs", "clock", "cur", "held", "held_line", "number", "continued", "here",
+                 "queued", "text_bytes", "text_ended", "hex_seen", "following", "known", "sizes", "on_kind")
+
     def __init__(self, src: Source, sides: Sides) -> None:
         self.src = src
         self.report = src.report
