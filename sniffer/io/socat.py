@@ -19,26 +19,25 @@ direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``
 socat appending to the same log starts again at ``from=0``, which is accepted. A header whose time is
 more than a second before the one before it is reported too (``timeline``: the clock was set back).
 
-One parser: the file is read in blocks of ``block`` characters (``_Blocks``: never the whole file), handed
-on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
-(numbered, line end stripped; a line longer than the source's ``max_line`` in pieces of the same number),
-every character accounted for: the lines that make up almost every dump, a header as socat writes it (its
-date and time digits) and the line after it when that starts with a space (its hex row), as one match
-with their fields; any other line as itself. The transfer builder (``_Transfers``: one chunk per transfer,
-handed on in bounded pieces; ``length=`` beyond 16 MiB is damage) reads each by its kind (``read``): a
-header and its row (``_header_match``; a row holding the transfer whole makes its chunk at once, held
-until the next line shows that no more rows follow), a further hex row (``_further_row``), the ``--`` that ends a ``-x -v``
-transfer held whole. The counters are checked by writing the two numbers expected (``from=`` where the
-side's last transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and
-checked in full, ``_counters``, when they differ); the time is computed as ``wallclock`` computes it
-(``_HeaderClock``: the start of the header's second remembered, found from the minute's start when the
-second changes, plus the fraction). A hex row's bytes come from ``bytes.fromhex`` checked against
-``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them), else from ``_HEX`` itself; short rows
-and lengths are remembered (a conversation repeats itself). Every other line, any line while -v text is
-being read, and a header the match does not take (another spelling, a date that is none) are queued for
-``step``: each line classified (``tokenize``: what a line is) and acted on by its kind's handler
-(``on_kind``), the same way whatever the dump's style and state. -v text is decoded a run of characters at
-a time.
+One parser: the file is read in blocks of ``block`` characters (``_Blocks``: never the whole file), handed on
+as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once (numbered, line
+end stripped; a line longer than the source's ``max_line`` in pieces of the same number), every character
+accounted for: the lines that make up almost every dump, a header as socat writes it (its date and time
+digits) and the line after it when that starts with a space (its hex row), as one match with their fields; any
+other line as itself. The transfer builder (``_Transfers``: one chunk per transfer, handed on in bounded
+pieces; ``length=`` beyond 16 MiB is damage) reads each by its kind (``read``): a header and its row
+(``_header_match``; a row holding the transfer whole makes its chunk at once, held until the next line shows
+that no more rows follow), a further hex row (``_further_row``), the ``--`` that ends a ``-x -v`` transfer
+held whole. The counters are checked by writing the two numbers expected (``from=`` where the side's last
+transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and checked in full,
+``_counters``, when they differ); the time is computed as ``wallclock`` computes it (``_HeaderClock``: the
+start of the header's second remembered, found from the minute's start when the second changes, plus the
+fraction). A hex row's bytes come from ``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single
+spaces, as ``_HEX`` reads them), else from ``_HEX`` itself; short rows and lengths are remembered (a
+conversation repeats itself). Every other line, any line while -v text is being read, and a header the match
+does not take (another spelling, a date that is none) are queued for ``step``: each line classified
+(``tokenize``: what a line is) and acted on by its kind's handler (``on_kind``), the same way whatever the
+dump's style and state. -v text is decoded a run of characters at a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
