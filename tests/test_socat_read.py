@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 
 from sniffer.io import base as base_mod
 from sniffer.io import socat as socat_mod
-from sniffer.io.base import Report, Source, WrongFormat, wallclock
+from sniffer.io.base import Report, Source, WrongFormat, shown, wallclock
 
 Transfer = tuple[str, bytes, str]  # side (">"/"<"), bytes, style ("x", "xv", "v")
 _V_ESCAPES = {0x0D: "\\r", 0x5C: "\\\\", 0x07: "\\a", 0x08: "\\b", 0x0B: "\\v", 0x0C: "\\f", 0x0A: "\n"}
@@ -652,3 +652,27 @@ def test_a_v_log_whose_last_text_has_no_line_end_is_whole(last: str) -> None:
     events, end, report = read_any_block(text, (socat_mod.BLOCK, 61))
     assert [e[2] for e in events] == [b"0RV\r\n", data]
     assert report["problems"] == [] and end == ("end", None, len(text))
+
+
+@pytest.mark.parametrize("at", [8, 14, 16, 19, 21])  # a character of the year, the month, the day, the
+# hour, the minute (the seconds' own two characters are covered by "second past 59")
+@pytest.mark.parametrize("char", ["x", "/", " ", "\xb2"])
+@pytest.mark.parametrize("line_end", ["\n", "\r\n"])
+def test_a_header_whose_date_or_time_is_not_all_digits_is_no_header(at: int, char: str,
+                                                                    line_end: str) -> None:
+    """A header line's date and time are digits (``YYYY/MM/DD HH:MM:SS``); one with any other character
+    there (a letter, a separator, a space, a superscript digit) is no header: it does not end the
+    transfer before it, and is reported at its line as a line the dump cannot hold, whatever the block
+    size and line end; the row after it is read as a further row of the transfer before, which is then
+    longer than its ``length=`` (reported at that header), and the next clean header reads on."""
+    bad = "> 2024/05/01 10:00:00.000002  length=2 from=2 to=3"
+    bad = bad[:at] + char + bad[at + 1:]
+    text = ("> 2024/05/01 10:00:00.000001  length=2 from=0 to=1\n 30 31\n" + bad + "\n 32 33\n"
+            "< 2024/05/01 10:00:01.000001  length=1 from=0 to=0\n 30\n").replace("\n", line_end)
+    events, end, report = read_any_block(text, (socat_mod.BLOCK, 1, 7, 61))
+    path = Path(_TMP.name) / "dump.log"
+    assert [(e[1], e[2]) for e in events] == [("host", b"0123"), ("device", b"0")]
+    assert report["problems"] == [f"{path}:3: cannot read this dump line: {shown(bad)}",
+                                  f"{path}:1: transfer says length=2 but its dump holds 4 byte(s) (cut "
+                                  f"short before line 5)"]
+    assert report["unread_lines"] == 1 and end == ("end", None, len(text))

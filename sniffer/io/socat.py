@@ -19,26 +19,25 @@ direction's bytes (``from=``, ``to=``): a header whose counters disagree with ``
 socat appending to the same log starts again at ``from=0``, which is accepted. A header whose time is
 more than a second before the one before it is reported too (``timeline``: the clock was set back).
 
-One parser: the file is read in blocks of ``block`` characters (``_Blocks``: never the whole file), handed
-on as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once
-(numbered, line end stripped; a line longer than the source's ``max_line`` in pieces of the same number),
-every character accounted for: the lines that make up almost every dump, a header as socat writes it and
-the line after it when that starts with a space (its hex row), as one match with their fields; any other
-line as itself. The transfer builder (``_Transfers``: one chunk per transfer, handed on in bounded pieces;
-``length=`` beyond 16 MiB is damage) reads each by its kind (``read``): a header and its row
-(``_header_match``; a row holding the transfer whole makes its chunk at once, held until the next line
-shows that no more rows follow), a further hex row (``_further_row``), the ``--`` that ends a ``-x -v``
-transfer held whole. The counters are checked by writing the two numbers expected (``from=`` where the
-side's last transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and
-checked in full, ``_counters``, when they differ); the time is computed as ``wallclock`` computes it
-(``_HeaderClock``: the start of the header's second remembered, found from the minute's start when the
-second changes, plus the fraction). A hex row's bytes come from ``bytes.fromhex`` checked against
-``bytes.hex`` (lower case, single spaces, as ``_HEX`` reads them), else from ``_HEX`` itself; short rows
-and lengths are remembered (a conversation repeats itself). Every other line, any line while -v text is
-being read, and a header the match does not take (another spelling, a date that is none) are queued for
-``step``: each line classified (``tokenize``: what a line is) and acted on by its kind's handler
-(``on_kind``), the same way whatever the dump's style and state. -v text is decoded a run of characters at
-a time.
+One parser: the file is read in blocks of ``block`` characters (``_Blocks``: never the whole file), handed on
+as regions of whole lines, which one ``findall`` of ``_block_matcher`` cuts into lines at once (numbered, line
+end stripped; a line longer than the source's ``max_line`` in pieces of the same number), every character
+accounted for: the lines that make up almost every dump, a header as socat writes it (its date and time
+digits) and the line after it when that starts with a space (its hex row), as one match with their fields; any
+other line as itself. The transfer builder (``_Transfers``: one chunk per transfer, handed on in bounded
+pieces; ``length=`` beyond 16 MiB is damage) reads each by its kind (``read``): a header and its row
+(``_header_match``; a row holding the transfer whole makes its chunk at once, held until the next line shows
+that no more rows follow), a further hex row (``_further_row``), the ``--`` that ends a ``-x -v`` transfer
+held whole. The counters are checked by writing the two numbers expected (``from=`` where the side's last
+transfer ended, ``to=`` where ``length=`` ends) and comparing them with the text (read and checked in full,
+``_counters``, when they differ); the time is computed as ``wallclock`` computes it (``_HeaderClock``: the
+start of the header's second remembered, found from the minute's start when the second changes, plus the
+fraction). A hex row's bytes come from ``bytes.fromhex`` checked against ``bytes.hex`` (lower case, single
+spaces, as ``_HEX`` reads them), else from ``_HEX`` itself; short rows and lengths are remembered (a
+conversation repeats itself). Every other line, any line while -v text is being read, and a header the match
+does not take (another spelling, a date that is none) are queued for ``step``: each line classified
+(``tokenize``: what a line is) and acted on by its kind's handler (``on_kind``), the same way whatever the
+dump's style and state. -v text is decoded a run of characters at a time.
 
 Host side default: ``>``; run ``socat -x -v <host's side> <device's side>``.
 """
@@ -67,7 +66,6 @@ _HEADER: Final = re.compile(
 _HEADER_LINE: Final = re.compile(_HEADER.pattern + r"(.*)", re.DOTALL)  # and what follows on the line
 _LONGEST_HEADER: Final = 110  # characters of the longest header line the block matcher takes (CR too)
 _SECONDS: Final = {f"{ss:02d}": ss for ss in range(60)}  # a clean header's seconds
-_MINUTE: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d")  # a clean header's date and minute
 _POWERS: Final = tuple(10 ** n for n in range(13))
 _DIAG: Final = re.compile(r"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d socat\[\d+\] [DINWEF] ")
 _HEX: Final = re.compile(r" ((?:[0-9a-f]{2} )*[0-9a-f]{2})(?: {2,}.*)?\s*")
@@ -132,19 +130,23 @@ def tokenize(text: str) -> tuple[str, re.Match[str] | None]:
 @functools.lru_cache(maxsize=8)
 def _block_matcher(max_line: int, crlf: bool) -> re.Pattern[str]:
     """What ``findall`` cuts a region of whole lines into, each line accounted for (no character skipped):
-    a header as socat writes it (``[0-5]`` seconds, six or nine digits of fraction, two spaces; a CR after
-    it when ``crlf``) with the line after it when that starts with a space (a hex row, its line end
-    excluded); any other line (up to ``max_line`` characters with its line end); or ``max_line``
-    characters of a longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM:SS`` (one string: compared
-    with the header before's; its date and minute checked by ``_MINUTE`` when they change), fraction
-    (with its point), length, from, to, row; the other line; the piece (each group costs ``findall`` a
-    string). A line limit shorter than a header turns the first kind off. (A CR that may end a line costs
-    a tenth of the matching: a file whose first lines end with LF alone is matched without, and its rows
-    up to the LF, ``[^\n]`` being counted much faster than ``[^\r\n]``; a line ending CR LF in it is then
-    another line, read by ``step``, or a row whose CR ``read`` strips where it is not read as hex, as
-    ``_HEX`` reads it with the CR.)"""
-    header = (r"([<>]) (.{16}:[0-5][0-9])(\.[0-9]{6}|\.[0-9]{9})  length=([0-9]{1,18}) from=([0-9]{1,18}) "
-              rf"to=([0-9]{{1,18}})\r?\n(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
+    a header as socat writes it (a date and time of digits, ``[0-5]`` seconds, six or nine digits of
+    fraction, two spaces; a CR after it when ``crlf``) with the line after it when that starts with a
+    space (a hex row, its line end excluded); any other line (up to ``max_line`` characters with its line
+    end); or ``max_line`` characters of a longer line (a piece). Groups: mark, ``YYYY/MM/DD HH:MM:SS``
+    (one string: compared with the header before's), fraction (with its point), length, from, to, row;
+    the other line; the piece (each group costs ``findall`` a string). The date's and time's digits are
+    each written ``[0-9]``: cheaper to match than a repeat ``[0-9]{4}``, and than a Python call checking
+    them a header (a header whose date is not all digits is another line, read by ``step``). A line
+    limit shorter than a header turns the first kind off. (A CR that may end a line costs a tenth of the
+    matching: a file whose first lines end with LF alone is matched without, and its rows up to the LF,
+    ``[^\n]`` being counted much faster than ``[^\r\n]``; a line ending CR LF in it is then another
+    line, read by ``step``, or a row whose CR ``read`` strips where it is not read as hex, as ``_HEX``
+    reads it with the CR.)"""
+    d = "[0-9]"
+    header = (rf"([<>]) ({d}{d}{d}{d}/{d}{d}/{d}{d} {d}{d}:{d}{d}:[0-5]{d})(\.[0-9]{{6}}|\.[0-9]{{9}})  "
+              rf"length=([0-9]{{1,18}}) from=([0-9]{{1,18}}) to=([0-9]{{1,18}})\r?\n"
+              rf"(?:( [^\r\n]{{0,{max_line - 2}}})\r?\n)?")
     if not crlf:
         header = header.replace(r"\r?", "").replace(r"[^\r\n]", r"[^\n]")
     return re.compile(("" if max_line > _LONGEST_HEADER else "(?!)") + header
@@ -253,14 +255,9 @@ class _HeaderClock:
         self.second = ""  # the last header's ``YYYY/MM/DD HH:MM:SS`` that ``at`` read, and its start
         self.second_base = 0.0
 
-    def plain(self, second: str) -> bool:
-        """Is this ``YYYY/MM/DD HH:MM:SS`` of a header as socat writes it one ``at`` reads: the second of
-        the header before, a second of its minute, or a date and minute of digits (``_MINUTE``)?"""
-        return second == self.second or second[:16] == self.minute or _MINUTE.match(second) is not None
-
     def at(self, number: int, second: str, frac: str) -> float | None:
-        """The time of a header as socat writes it (``second`` as ``plain`` takes it, ``frac`` with its
-        point) on line ``number``."""
+        """The time of a header as socat writes it (``second`` as ``_block_matcher`` takes it, digits,
+        ``frac`` with its point) on line ``number``."""
         if second != self.second:
             if second[:16] != self.minute:  # a new minute
                 return self.time(number, second[:10], second[11:], frac[1:])
@@ -321,6 +318,9 @@ class _Transfers:
     writes it (a header and its hex row, further rows, the ``--`` after a transfer held whole); ``step``
     every other line, and every line while -v text is being read."""
 
+    __slots__ = ("src", "report", "dirs", "clock", "cur", "held", "held_line", "number", "continued", "here",
+                 "queued", "text_bytes", "text_ended", "hex_seen", "following", "known", "sizes", "on_kind")
+
     def __init__(self, src: Source, sides: Sides) -> None:
         self.src = src
         self.report = src.report
@@ -355,13 +355,12 @@ class _Transfers:
         module docstring); then the file's last line if it has no line end."""
         findall = _block_matcher(self.src.max_line, b"\r\n" in self.src.head()).findall  # (nothing read yet)
         header, further_row, for_step = self._header_match, self._further_row, self._line_for_step
-        plain = self.clock.plain
         queued = self.queued
         chunk: Chunk | None
         for region in blocks.regions():
             for match in findall(*region):
                 if match[0]:
-                    if self.here and plain(match[1]):  # the transfer before ends (held whole, or finished)
+                    if self.here:  # the transfer before ends (held whole, or finished)
                         chunk, self.held = self.held or self.finish(self.number + 1), None
                         if chunk is not None:
                             yield chunk  # (before anything of the header is said)
@@ -422,8 +421,8 @@ class _Transfers:
         return chunk
 
     def _header_for_step(self, match: tuple[str, ...]) -> None:
-        """A header while -v text is read or a line's pieces go on, or of a date ``plain`` refuses: queued
-        for ``step`` with its row."""
+        """A header while -v text is read or a line's pieces go on: queued for ``step`` with its row (a
+        header whose date is not all digits is no header to ``_block_matcher``: another line for ``step``)."""
         mark, second, frac, length_s, from_s, to_s, row, _, _ = match
         self._line_for_step(f"{mark} {second}{frac}  length={length_s} from={from_s} to={to_s}", "")
         if row:
