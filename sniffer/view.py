@@ -8,10 +8,12 @@ violation with its docs/protocol.md meaning and the detail; errors in red, notic
 when the stream is a terminal (``color`` forces it). ``xac1 sniff``, ``xac1 proxy`` and ``xac1 decode``
 share these.
 
-One formatter a view: the text view's ``line`` (styled pieces; without colour a line is their plain
-text), the JSON lines' ``sniffer.json_lines`` (``record.to_json()`` is its line). Speed: a frame record's
-line is its numbers around a part made once per distinct frame (``sniffer.frame_parts``), the clock of the
-last whole second is remembered (``clock_second``), and offline lines are written in batches (``_Lines``).
+One formatter a view, a loop over a batch of records: the text view's ``TextView.lines`` (each line its
+pieces of text and their styles; without colour a line is their plain text), the JSON lines'
+``JsonLines.lines`` (``sniffer.json_lines``); ``write(record)`` is ``write_many`` of one. Speed: a frame
+record's line is its numbers around a part made once per distinct frame (``sniffer.frame_parts``), the
+clock of the last whole second is remembered (``clock_second``), and offline lines are written in batches
+(``_Lines``).
 """
 
 from __future__ import annotations
