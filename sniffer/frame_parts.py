@@ -35,15 +35,21 @@ class FrameParts(Generic[T]):
 
     def get(self, direction: Any, raw: Any, header: Any, frame: Any) -> T:
         """The part of a record with this direction, bytes, header and frame: the one kept when it was
-        made from this very frame object and an equal header, else made now (and kept)."""
-        by_raw = self._kept.get(direction) if type(direction) is str else None
-        if by_raw is None or type(raw) is not bytes:
-            return self._make(direction, raw, header, frame)
-        known = by_raw.get(raw)
-        if known is not None and known[0] is frame and known[1] == header:
+        made from this very frame object and an equal header, else made now (``made``)."""
+        try:
+            known = self._kept[direction][raw]
+        except (KeyError, TypeError):  # none kept (TypeError: a direction or bytes no dict could hold)
+            return self.made(direction, raw, header, frame)
+        if known[0] is frame and known[1] == header and type(raw) is bytes and type(direction) is str:
             return known[2]
+        return self.made(direction, raw, header, frame)
+
+    def made(self, direction: Any, raw: Any, header: Any, frame: Any) -> T:
+        """The part made now, and kept (but None, or for a direction other than ``host`` and ``device`` or
+        bytes of another type)."""
         part = self._make(direction, raw, header, frame)
-        if part is not None:
+        by_raw = self._kept.get(direction) if type(direction) is str else None
+        if part is not None and by_raw is not None and type(raw) is bytes:
             if len(by_raw) >= KEPT:
                 by_raw.clear()
             by_raw[raw] = (frame, header, part)

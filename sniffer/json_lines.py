@@ -14,7 +14,7 @@ field, junk, timeouts) is the record's ``to_dict`` through ``json`` itself.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from operator import attrgetter
 from typing import Any, Final
 
@@ -144,8 +144,7 @@ def _noted(record: FrameRecord) -> tuple[str, str] | None:
 
 
 class JsonLines:
-    """Makes records' JSON lines (``line``, ``extend``), keeping the middles of the last distinct
-    frames."""
+    """Makes records' JSON lines (``lines``), keeping the middles of the last distinct frames."""
 
     __slots__ = ("_middles",)
 
@@ -153,53 +152,48 @@ class JsonLines:
         self._middles: FrameParts[str | None] = FrameParts(middle)
 
     def line(self, record: Record) -> str:
-        """The record's JSON object (docs/output.md) and a newline."""
-        if type(record) is FrameRecord:
-            made = self.frame_line(record)
-            if made is not None:
-                return made
-        return json_line(record)
+        """The record's JSON object (docs/output.md) and a newline (``lines`` of one)."""
+        return next(self.lines((record,)))
 
-    def extend(self, records: Iterable[Record], out: list[str]) -> None:
-        """Each record's ``line``, appended to ``out``."""
-        frame_line, append = self.frame_line, out.append
+    def lines(self, records: Iterable[Record]) -> Iterator[str]:
+        """Each record's JSON object and a newline. A frame record's is its numbers around its middle (made
+        once per distinct frame); any other record's, or one whose values are not of the usual types, is
+        its ``to_dict`` through ``json`` (``json_line``)."""
+        get = self._middles.get
         for record in records:
-            made = frame_line(record) if type(record) is FrameRecord else None
-            append(json_line(record) if made is None else made)
-
-    def frame_line(self, record: FrameRecord) -> str | None:
-        """A frame record's line from its numbers around its middle (made once per distinct frame); None
-        when a value is not of the usual types (the line is then ``json``'s, ``json_line``)."""
-        (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last,
-         line_errors, sides, _window, _severities) = record
-        if type(i) is not int:
-            return None
-        shown = self._middles.get(direction, raw, header, frame)
-        if shown is None:
-            return None
-        notes = ""
-        if violations or details or line_errors or sides:
-            noted = _noted(record)
-            if noted is None:
-                return None
-            judged, notes = noted
-            shown = shown[:_UNJUDGED] + judged
-        if type(t) is float and 0.001 <= t < _T_MAX:  # json_t(t) without its call (the usual time)
-            shown_t = f"{t:.6f}".rstrip("0")
-            if shown_t[-1] == ".":
-                shown_t += "0"
-        else:
-            shown_t = json_t(t)
-        if direction != "device":
-            return f'{{"type":"frame","i":{i},"t":{shown_t},{shown}{notes}}}\n'
-        ms = latency * 1000.0 if type(latency) is float else None
-        if ms is not None and 0.001 <= ms < _MS_MAX:  # json_ms(latency) without its call
-            shown_ms = f"{ms:.3f}".rstrip("0")
-            if shown_ms[-1] == ".":
-                shown_ms += "0"
-        else:
-            shown_ms = json_ms(latency)
-        shown_reply = reply_to if type(reply_to) is int else json_number(reply_to)
-        return (f'{{"type":"frame","i":{i},"t":{shown_t},{shown},"reply_to":{shown_reply},'
-                f'"latency_ms":{shown_ms}{notes}}}\n')
-
+            if type(record) is not FrameRecord:
+                yield json_line(record)
+                continue
+            (i, t, direction, raw, header, frame, violations, details, reply_to, latency, _t_last,
+             line_errors, sides, _window, _severities) = record
+            shown = get(direction, raw, header, frame) if type(i) is int else None
+            notes = ""
+            if shown is not None and (violations or details or line_errors or sides):
+                noted = _noted(record)
+                if noted is None:
+                    shown = None
+                else:
+                    judged, notes = noted
+                    shown = shown[:_UNJUDGED] + judged
+            if shown is None:
+                yield json_line(record)
+                continue
+            if type(t) is float and 0.001 <= t < _T_MAX:  # json_t(t) without its call (the usual time)
+                shown_t = f"{t:.6f}".rstrip("0")
+                if shown_t[-1] == ".":
+                    shown_t += "0"
+            else:
+                shown_t = json_t(t)
+            if direction != "device":
+                yield f'{{"type":"frame","i":{i},"t":{shown_t},{shown}{notes}}}\n'
+                continue
+            ms = latency * 1000.0 if type(latency) is float else None
+            if ms is not None and 0.001 <= ms < _MS_MAX:  # json_ms(latency) without its call
+                shown_ms = f"{ms:.3f}".rstrip("0")
+                if shown_ms[-1] == ".":
+                    shown_ms += "0"
+            else:
+                shown_ms = json_ms(latency)
+            shown_reply = reply_to if type(reply_to) is int else json_number(reply_to)
+            yield (f'{{"type":"frame","i":{i},"t":{shown_t},{shown},"reply_to":{shown_reply},'
+                   f'"latency_ms":{shown_ms}{notes}}}\n')

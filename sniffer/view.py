@@ -8,17 +8,19 @@ violation with its docs/protocol.md meaning and the detail; errors in red, notic
 when the stream is a terminal (``color`` forces it). ``xac1 sniff``, ``xac1 proxy`` and ``xac1 decode``
 share these.
 
-One formatter a view: the text view's ``line`` (styled pieces; without colour a line is their plain
-text), the JSON lines' ``sniffer.json_lines`` (``record.to_json()`` is its line). Speed: a frame record's
-line is its numbers around a part made once per distinct frame (``sniffer.frame_parts``), the clock of the
-last whole second is remembered (``clock_second``), and offline lines are written in batches (``_Lines``).
+One formatter a view, a loop over a batch of records: the text view's ``TextView.lines`` (each line its
+pieces of text and their styles; without colour a line is their plain text), the JSON lines'
+``JsonLines.lines`` (``sniffer.json_lines``); ``write(record)`` is ``write_many`` of one. Speed: a frame
+record's line is its numbers around a part made once per distinct frame (``sniffer.frame_parts``), the
+clock of the last whole second is remembered (``clock_second``), and offline lines are written in batches
+(``_Lines``).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from itertools import islice
 from typing import IO, Any, Protocol
 
@@ -47,7 +49,10 @@ _ESCAPES = {0x0D: "\\r", 0x0A: "\\n", 0x5C: "\\\\"}
 _SHOWN = {b: _ESCAPES.get(b) or (chr(b) if 0x20 <= b < 0x7F else f"\\x{b:02X}") for b in range(256)}
 BATCH_LINES = 512  # an offline view writes this many lines at a time (one write, not one per line)
 
-Part = tuple[str, str]  # a piece of a line and its rich style ("" for none)
+# a line for people: its pieces of text, and the rich style of each ("" for none)
+Line = tuple[tuple[str, ...], tuple[str, ...]]
+# a frame record's text between its number and its tail (its bytes shown, its decode) and its line's styles
+_Middle = tuple[str, str, tuple[str, ...]]
 
 _MS = tuple(f"{ms:03d}" for ms in range(1000))
 
@@ -136,17 +141,17 @@ class JsonlView:
             self.stream.flush()
 
     def write_many(self, records: Iterable[Record]) -> None:
-        """``write`` each record (offline: the lines of a batch made in one loop)."""
+        """``write`` each record (offline: the lines of a batch taken from ``JsonLines.lines`` at once)."""
         if self.live or not self._lines.batched:
             for record in records:
                 self.write(record)
             return
-        lines, extend = self._lines, self._json.extend
+        lines = self._lines
         pending = lines.pending
-        remaining = iter(records)
+        made = self._json.lines(records)
         while True:  # up to ``BATCH_LINES`` lines pending, then written (a line a record)
-            wanted = BATCH_LINES - len(pending)
-            extend(islice(remaining, wanted), pending)
+            before = len(pending)
+            pending += islice(made, BATCH_LINES - before)
             if len(pending) < BATCH_LINES:
                 return
             lines.write_pending()
@@ -165,8 +170,8 @@ class JsonlView:
 
 
 class TextView:
-    """A line per record for people; see the module docstring. A line is built as styled pieces
-    (``Part``), never as markup: bytes such as ``[bold]`` or ``:smile:`` are shown as they came."""
+    """Lines for people; see the module docstring. A line is its pieces of text and the style of each
+    (``Line``), never markup: bytes such as ``[bold]`` or ``:smile:`` are shown as they came."""
 
     def __init__(self, stream: IO[str], color: bool | None = None, live: bool = True) -> None:
         self.console = Console(file=stream, force_terminal=color, no_color=color is False,
@@ -177,63 +182,76 @@ class TextView:
         self._lines = _Lines(stream, live)
         self._second = math.nan  # the whole second of the last clock shown (``clock_second``)
         self._prefix = ""  # its clock, "HH:MM:SS."
-        self._middles: FrameParts[tuple[Part, Part]] = FrameParts(_frame_middle)
-
-    def _print(self, parts: list[Part]) -> None:
-        """One line: what ``console.print`` prints of the pieces."""
-        if self._plain:
-            plain = "".join([text for text, _ in parts])
-            if "\t" not in plain:  # tabs the console expands: left to it
-                self._lines.add(plain + "\n")
-                return
-        self._lines.write_pending()  # in order with what the console prints
-        self.console.print(Text.assemble(*parts))
+        self._middles: FrameParts[_Middle] = FrameParts(_frame_middle)
 
     def write(self, record: Record) -> None:
-        """The record's line (``line``), then its violations and line errors."""
-        self._print(self.line(record))
-        if record.violations or getattr(record, "line_errors", ()):
-            for parts in _after(record):
-                self._print(parts)
+        """The record's lines (``write_many`` of one)."""
+        self.write_many((record,))
 
     def write_many(self, records: Iterable[Record]) -> None:
-        """``write`` each record."""
-        for record in records:
-            self.write(record)
+        """The lines of the records (``lines``), each printed as ``console.print`` prints its pieces:
+        without colour that is their text joined (a line holding a tab, which the console expands, is left
+        to it)."""
+        plain, lines = self._plain, self._lines
+        pending = lines.pending
+        for texts, styles in self.lines(records):
+            if plain:
+                text = "".join(texts)
+                if "\t" not in text:
+                    if lines.batched:  # lines.add(text + "\n")
+                        pending.append(text + "\n")
+                        if len(pending) >= BATCH_LINES:
+                            lines.write_pending()
+                    else:
+                        lines.add(text + "\n")
+                    continue
+            self._lines.write_pending()  # in order with what the console prints
+            self.console.print(Text.assemble(*zip(texts, styles, strict=True)))
 
-    def line(self, record: Record) -> list[Part]:
-        """The record's line as styled pieces: time, record number, then what the record is (for a frame
-        its direction, bytes and decode, made once per distinct frame: ``sniffer.frame_parts``), and on
-        an answer the command it answers and the latency."""
-        if isinstance(record, FrameRecord):
-            (i, t, direction, raw, header, frame, _violations, _details, reply_to, latency_s, _t_last,
-             _line_errors, _sides, _window, _severities) = record
-            shown, decoded = self._middles.get(direction, raw, header, frame)
-            if direction != "device" or reply_to is None:
-                tail = ""
-            elif latency_s is None:
-                tail = f"  re #{reply_to}"
-            else:  # the latency as ``latency_ms`` has it, one decimal shown
-                tail = f"  re #{reply_to}  {round(latency_s * 1000.0, 3):.1f} ms"
-            return [(f"{self._clock(t)} #{i:<4} ", ""), shown, decoded, (tail, "dim")]
-        if isinstance(record, TimeoutRecord):
-            when = show_time(record.t)
-            waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
-            return [(f"{when}       ", ""),
-                    (f"device ✗ no answer to #{record.command} ({record.header or 'unknown'}){waited}",
-                     "bold red")]
-        return [(f"{self._clock(record.t)} #{record.i:<4} ", ""), *_junk_body(record)]
-
-    def _clock(self, t: Any) -> str:
-        """``show_time(t)``, the clock of the last whole second shown remembered (``clock_second``)."""
-        if (type(t) is float and 0.0 <= (into := t - self._second) < 1.0
-                and (us := round(into * 1e6)) < 1_000_000):  # inside the last second shown
-            return self._prefix + _MS[us // 1000]
-        clock = show_time(t)
-        whole = clock_second(t, clock)
-        if whole is not None:
-            self._second, self._prefix = whole, clock[:-3]
-        return clock
+    def lines(self, records: Iterable[Record]) -> Iterator[Line]:
+        """Each record's line, then a line per violation and line error (``_after``). A record's line is
+        its time and number, then what it is: for a frame its direction, bytes and decode (made once per
+        distinct frame, ``sniffer.frame_parts``) and on an answer the command it answers and the
+        latency (``latency_shown``); junk (``_junk_line``); a missed answer (``_timeout_line``). The clock
+        of the last whole second shown is remembered (``clock_second``)."""
+        middle = self._middles.get
+        second, prefix = self._second, self._prefix
+        try:
+            for record in records:
+                if type(record) is FrameRecord:
+                    (i, t, direction, raw, header, frame, violations, _details, reply_to, latency_s, _t_last,
+                     line_errors, _sides, _window, _severities) = record
+                else:
+                    t = record.t
+                if (type(t) is float and 0.0 <= (into := t - second) < 1.0
+                        and (us := round(into * 1e6)) < 1_000_000):  # inside the last second shown
+                    clock = prefix + _MS[us // 1000]
+                else:
+                    clock = show_time(t)
+                    whole = clock_second(t, clock)
+                    if whole is not None:
+                        second, prefix = whole, clock[:-3]
+                if type(record) is not FrameRecord:
+                    yield _other_line(clock, record)  # type: ignore[arg-type]  # not a frame's
+                    yield from _after(record)
+                    continue
+                shown, decoded, styles = middle(direction, raw, header, frame)
+                if direction != "device" or reply_to is None:
+                    tail = ""
+                elif latency_s is None:
+                    tail = f"  re #{reply_to}"
+                elif (type(latency_s) is float and 0.0 <= (ms := latency_s * 1000.0) < 1e6
+                      and not 0.494 <= ms * 10.0 % 1.0 <= 0.506):  # the note on latencies below
+                    tail = f"  re #{reply_to}  {ms:.1f} ms"
+                else:  # ``latency_ms``, one decimal shown
+                    tail = f"  re #{reply_to}  {round(latency_s * 1000.0, 3):.1f} ms"
+                # a record number from 1000 up fills its column: ``{i:<4}`` (slower) pads nothing
+                head = f"{clock} #{i} " if type(i) is int and i >= 1000 else f"{clock} #{i:<4} "
+                yield (head, shown, decoded, tail), styles
+                if violations or line_errors:
+                    yield from _after(record)
+        finally:
+            self._second, self._prefix = second, prefix
 
     def summary(self, summary: dict[str, Any]) -> None:
         self._lines.write_pending()
@@ -246,45 +264,72 @@ class TextView:
         self.stream.flush()
 
 
-def _shown(direction: Any, raw: bytes) -> Part:
-    """A record's direction, arrow and bytes as typed, in its direction's colour."""
+# ``TextView.lines`` shows a latency of ``ms`` milliseconds (from 0 up to 1e6) as ``f"{ms:.1f}"`` when no tie
+# of the one-decimal rounding (``k.k5``) is within 0.0006 ms of it: rounding to 3 decimals first
+# (``latency_ms``, ``round(ms, 3)``) moves it by 0.0005 ms at most, never across that tie, so both give the
+# same digit. ``ms * 10.0 % 1.0`` is that fraction to within 1e-9 below 1e6 ms.
+
+
+def _other_line(clock: str, record: JunkRecord | TimeoutRecord) -> Line:
+    """The line of a record other than a frame's: a missed answer's or a junk run's."""
+    if isinstance(record, TimeoutRecord):
+        return _timeout_line(clock, record)
+    return _junk_line(clock, record)
+
+
+def _timeout_line(clock: str, record: TimeoutRecord) -> Line:
+    """A missed answer's line: the deadline, the command and its header, the time waited."""
+    waited = "" if record.waited_s is None else f" within {record.waited_s:.3f} s"
+    return ((f"{clock}       ",
+             f"device ✗ no answer to #{record.command} ({record.header or 'unknown'}){waited}"),
+            ("", "bold red"))
+
+
+def _shown(direction: Any, raw: bytes) -> str:
+    """A record's direction, arrow and bytes as typed."""
     arrow = "→" if direction == "host" else "←"
-    colour = "cyan" if direction == "host" else "green"
-    return (f"{direction:<6} {arrow} {show_raw(raw):<22}", colour)
+    return f"{direction:<6} {arrow} {show_raw(raw):<22}"
 
 
-def _junk_body(record: JunkRecord) -> list[Part]:
-    """A junk record's line but its time and number: direction, bytes, why they are junk."""
-    shown = _shown(record.dir, record.raw)
+def _colour(direction: Any) -> str:
+    """The style of a direction's bytes."""
+    return "cyan" if direction == "host" else "green"
+
+
+def _junk_line(clock: str, record: JunkRecord) -> Line:
+    """A junk record's line: time, number, direction, bytes, why they are junk."""
+    head, shown, colour = f"{clock} #{record.i:<4} ", _shown(record.dir, record.raw), _colour(record.dir)
     if record.reason == CAPTURE_ENDED:
         cut = "" if record.reply_to is None else f", the answer to #{record.reply_to}"
-        return [shown, (" ", ""), (f"cut: the capture ended inside this frame{cut} (no violation)", "yellow")]
-    return [shown, (" ", ""), (f"junk ({record.reason})", "red")]
+        return ((head, shown, " ", f"cut: the capture ended inside this frame{cut} (no violation)"),
+                ("", colour, "", "yellow"))
+    return (head, shown, " ", f"junk ({record.reason})"), ("", colour, "", "red")
 
 
-def _frame_middle(direction: Any, raw: bytes, header: str | None, frame: Any) -> tuple[Part, Part]:
-    """A frame record's line between its number and its tail: direction and bytes, what they decode to."""
+def _frame_middle(direction: Any, raw: bytes, header: str | None, frame: Any) -> _Middle:
+    """A frame record's line between its number and its tail: direction and bytes, what they decode to,
+    and the styles of the line's pieces (``TextView.line``)."""
     if frame is None:
         decoded = f"{header or 'unknown'} (not decodable)"
     else:
         decoded = str(frame)
         if header == spec.ALARM_HEADER:
             decoded += f" ({spec.alarm_meaning(frame.fields()['code'])})"
-    return _shown(direction, raw), (f" {decoded}", "")
+    return _shown(direction, raw), f" {decoded}", ("", _colour(direction), "", "dim")
 
 
-def _after(record: Record) -> list[list[Part]]:
+def _after(record: Record) -> list[Line]:
     """The lines after a record's line: its violations, then its line errors."""
     out = violation_parts(record)
     for error in getattr(record, "line_errors", ()):
-        out.append([("      ", ""), (f"! line error: {error}", "magenta")])
+        out.append((("      ", f"! line error: {error}"), ("", "magenta")))
     return out
 
 
-def violation_parts(record: Record) -> list[list[Part]]:
+def violation_parts(record: Record) -> list[Line]:
     """One line per violation code of a record: whose fault, code, docs/protocol.md meaning, the detail
-    (``host ✗ letter-o: ...``), as styled pieces."""
-    out = []
+    (``host ✗ letter-o: ...``)."""
+    out: list[Line] = []
     details = list(record.details)
     for code, side, severity in zip(record.violations, sides_of(record), severities_of(record), strict=True):
         meaning = spec.VIOLATIONS[code][1]
@@ -292,16 +337,17 @@ def violation_parts(record: Record) -> list[list[Part]]:
         suffix = f" ({code})"
         detail = "; ".join(d.removesuffix(suffix) for d in details if d.endswith(suffix))
         mark = "!" if severity == spec.NOTICE else "✗"
-        parts: list[Part] = [("      ", ""), (f"{side:<6} {mark} {code}", colour), (f": {meaning}", "")]
+        texts = ("      ", f"{side:<6} {mark} {code}", f": {meaning}")
         if detail:
-            parts += [(" ", ""), (f"— {detail}", "dim")]
-        out.append(parts)
+            out.append(((*texts, " ", f"— {detail}"), ("", colour, "", "", "dim")))
+        else:
+            out.append((texts, ("", colour, "")))
     return out
 
 
 def violation_lines(record: Record) -> list[str]:
     """The violation lines of a record as plain text."""
-    return ["".join(text for text, _ in parts) for parts in violation_parts(record)]
+    return ["".join(texts) for texts, _ in violation_parts(record)]
 
 
 def summary_lines(summary: dict[str, Any]) -> list[str]:

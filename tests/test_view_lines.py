@@ -38,7 +38,7 @@ from sniffer import json_lines
 from sniffer import view as view_mod
 from sniffer.analyzer import Analyzer
 from sniffer.records import CAPTURE_ENDED, FrameRecord, JunkRecord, Record, TimeoutRecord
-from sniffer.view import BATCH_LINES, JsonlView, TextView, violation_parts
+from sniffer.view import BATCH_LINES, JsonlView, TextView
 from xac1_proto import frames as fr
 from xac1_proto import spec
 
@@ -67,17 +67,14 @@ def _outcome(make: Any) -> tuple[str, Any]:
 
 
 def plain_text(record: Record) -> str:
-    """A record's styled pieces (its line, its violations, its line errors) as plain text, a line; a line
-    holding a tab as rich prints it (rich expands tabs)."""
+    """A record's lines (its line, its violations, its line errors: ``TextView.lines``), each the plain
+    text of its pieces; a line holding a tab as rich prints it (rich expands tabs)."""
     stream = io.StringIO()
     console = Console(file=stream, no_color=True, highlight=False, soft_wrap=True, emoji=False)
-    view = TextView(io.StringIO(), color=False)
-    errors = [[("      ", ""), (f"! line error: {e}", "magenta")] for e in getattr(record, "line_errors", ())]
-    lines = [view.line(record), *violation_parts(record), *errors]
-    for parts in lines:
-        text = "".join(t for t, _ in parts)
+    for texts, styles in TextView(io.StringIO(), color=False).lines([record]):
+        text = "".join(texts)
         if "\t" in text:
-            console.print(Text.assemble(*parts))
+            console.print(Text.assemble(*zip(texts, styles, strict=True)))
         else:
             stream.write(text + "\n")
     return stream.getvalue()
