@@ -13,7 +13,8 @@ How this works:
   otherwise. A test with its own budget writes ``@settings(max_examples=budget(N))``.
 - ``wait_until(predicate, timeout, what)`` replaces sleeping as synchronisation: it polls something the
   test can observe and fails saying what never happened.
-- The processes tests start cache their compiled modules, whatever ``PYTHONDONTWRITEBYTECODE`` says.
+- The test session and the processes its tests start cache their compiled modules, whatever
+  ``PYTHONDONTWRITEBYTECODE`` says.
 - ``gallery`` is ``captures/make_gallery.py`` (the scripted session, the capture makers).
 - ``xac1(...)`` runs the console script's module as a user does (a real subprocess);
   ``conformance(...)`` runs ``xac1 conformance`` (``failed_checks``/``skipped_checks`` read its JUnit
@@ -55,6 +56,11 @@ CAPTURES = ROOT / "captures"
 # the suite's hundreds of children would compile the package and have pytest rewrite the asserts of every
 # plugin's modules (hypothesis, anyio, xdist) again, doubling the CPU time of a conformance run.
 os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+# The test session alike: pytest compiles each test module with its asserts rewritten, and caches the result
+# only where bytecode may be written; with PYTHONDONTWRITEBYTECODE every worker would rewrite and compile all
+# hundred-odd test modules again on every run (seconds of each worker's start). This file is imported before
+# any test module is collected.
+sys.dont_write_bytecode = False
 
 
 def _load_gallery() -> ModuleType:
