@@ -22,6 +22,7 @@ there is; the engine's docstring says what it then concludes.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 from itertools import islice
 from typing import Final
@@ -266,7 +267,9 @@ def _inside_frame(event: FrameBytes | Junk) -> bool:
             and event.raw[:1] in (spec.LEAD, spec.LETTER_O) and spec.LF not in event.raw)
 
 
-_frame_record = FrameRecord._make  # the NamedTuple's own constructor from a tuple (no keyword handling)
+# a frame record from its fields in order, as ``FrameRecord._make`` builds it but with no Python frame of its
+# own (every field is given)
+_frame_record: Final = functools.partial(tuple.__new__, FrameRecord)
 
 
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
