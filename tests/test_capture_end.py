@@ -10,6 +10,7 @@ import io
 import json
 from pathlib import Path
 
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -105,7 +106,7 @@ answers = st.sampled_from([(b"0RV\r\n", b"0RV100\r\n"), (b"0RP3\r\n", b"0RP39302
                            (b"0WS12\r\n", b"0WS12\r\n"), (b"0%C\r\n", b"0%C00\r\n")])
 
 
-@settings(max_examples=80, deadline=None)
+@settings(max_examples=budget(80), deadline=None)
 @given(st.lists(answers, min_size=1, max_size=5), st.integers(1, 15), st.booleans())
 def test_wherever_the_end_cuts_the_last_answer_no_one_is_charged(exchanges, cut, timed):
     """Clean exchanges, the capture ending anywhere inside the last answer: no violation at all."""

@@ -5,6 +5,7 @@ emergency stop (vendor §6: 0%C clears every alarm but emergency stop)."""
 
 from __future__ import annotations
 
+from conftest import budget
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
@@ -87,7 +88,7 @@ class CleanSimulatorFromTheLineAlone(RuleBasedStateMachine):
 
 
 CleanSimulatorFromTheLineAlone.TestCase.settings = settings(
-    max_examples=80, stateful_step_count=40, deadline=None, suppress_health_check=list(HealthCheck))
+    max_examples=budget(80), stateful_step_count=40, deadline=None, suppress_health_check=list(HealthCheck))
 test_clean_simulator_from_the_line_alone_never_gets_a_device_side_verdict = \
     CleanSimulatorFromTheLineAlone.TestCase
 

@@ -4,6 +4,7 @@ failed before the fix it holds (issue 23)."""
 
 from __future__ import annotations
 
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -63,7 +64,7 @@ def test_0cm1_keeps_what_the_conversation_established():
 ports = st.sampled_from([b"0", b"1", b"2", b"3"])
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(ports, ports, st.integers(0, 0xFFFFFE))
 def test_no_read_after_0cm0_is_ever_blamed_on_the_device(written, read, pos):
     """Whatever a PLC did in mode 0, the first 0RS and 0RC after 0CM0 are never a readback-mismatch."""
@@ -112,7 +113,7 @@ exchanges = st.lists(st.sampled_from([
     (b"0CM0\r\n", b"0CM0\r\n"), (b"0RS\r\n", b"0RS12\r\n")]), max_size=12)
 
 
-@settings(max_examples=80, deadline=None)
+@settings(max_examples=budget(80), deadline=None)
 @given(exchanges)
 def test_0rc_ffffff_is_never_a_readback_mismatch(before):
     """Whatever came before, 0RC answered N, V, A 0 and Pos FFFFFF is never a readback-mismatch."""
@@ -159,7 +160,7 @@ def test_a_garbled_alarm_answer_neither_counts_nor_ends_the_storm_run():
     assert c.knowledge.storm_run == 3
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(st.lists(st.sampled_from([(b"0RV\r\n", b"0%%01\r\n"), (b"0RV\r\n", b"0%%0E\r\n"),
                                  (b"0%C\r\n", b"0%C00\r\n"), (b"0%C\r\n", b"0%%0E\r\n"),
                                  (b"0RV\r\n", b"0RV100\r\n"), (b"0XY\r\n", b"0%%01\r\n")]), max_size=14))

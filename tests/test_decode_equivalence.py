@@ -212,7 +212,8 @@ def write_socat(chunks: list[Chunk], path: Path) -> None:
 @given(events, gaps, cuts, st.one_of(st.none(), st.integers(29, 10_000)))
 def test_pcapng_reader_gives_back_the_chunks_written(tmp_path_factory, items, dts, sizes, cut):
     """A pcapng file read back gives the chunks written, direction, bytes and time; a file cut short gives
-    a first part of them and says that something was lost."""
+    a first part of them and says that something was lost, unless it was cut between two blocks (then it
+    is a whole, shorter file)."""
     chunks = chunks_of(items, dts, sizes, timed=True)
     path = tmp_path_factory.mktemp("pcapng") / "c.pcapng"
     with pcap_mod.PcapngWriter(path) as w:
@@ -228,8 +229,17 @@ def test_pcapng_reader_gives_back_the_chunks_written(tmp_path_factory, items, dt
     assert all(abs(a.t - b.t) < 2e-6 for a, b in zip(got, chunks, strict=False))  # type: ignore[operator]
     if cut is None or cut >= len(data):
         assert read == written and problems == []
-    elif len(read) < len(written):
+    elif len(read) < len(written) and cut not in _block_ends(data):
         assert problems != []
+
+
+def _block_ends(data: bytes) -> set[int]:
+    """The offsets just past each block of a (little-endian, as the writer writes) pcapng file."""
+    ends, offset = set(), 0
+    while offset + 8 <= len(data):
+        offset += int.from_bytes(data[offset + 4:offset + 8], "little")
+        ends.add(offset)
+    return ends
 
 
 @settings(max_examples=budget(60), deadline=None)

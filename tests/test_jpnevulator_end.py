@@ -9,7 +9,7 @@ import io
 from pathlib import Path
 
 import pytest
-from conftest import CAPTURES
+from conftest import CAPTURES, budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -67,7 +67,7 @@ def test_decode_of_a_clean_jpnevulator_log_exits_0(tmp_path: Path):
 lines = st.lists(st.binary(min_size=1, max_size=12), min_size=1, max_size=4)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(lines, st.booleans(), st.booleans())
 def test_with_or_without_the_last_line_end_the_same_bytes_and_no_problem(tmp_path_factory, bursts,
                                                                          ascii_column, line_end):

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import pytest
+from conftest import budget
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -336,7 +337,7 @@ LATE = 1_790_000_000_000_000  # microseconds
 
 # ---------------------------------------------------------------- any file, any read size ----
 
-@settings(max_examples=40, deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(40), deadline=None, suppress_health_check=SLOW_OK)
 @given(pcapng_files(), damages, reads, st.booleans(), host_sides, give_ups)
 @example(  # an EPB's length at its end corrupted between good ones
     pieces=ng("<", shb(), idb(), *(epb("<", rtac(k % 2 + 1, b"0RV\r\n", usecs=k)) for k in range(4))),
@@ -360,7 +361,7 @@ def test_any_pcapng_file_reads_the_same_whatever_the_read_size(folder, pieces, d
     read_any_size(save(folder, assemble(pieces, damage), ".pcapng"), sizes, small, host_is, give_up)
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(30), deadline=None, suppress_health_check=SLOW_OK)
 @given(pcap_files(), damages, reads, st.booleans(), host_sides, give_ups)
 @example(  # nanoseconds: the last second of 2^32 with the largest fraction is 2^32 s as a float: out of
     # range, the packet takes the last good time
@@ -422,7 +423,7 @@ def as_pcap(data: bytes) -> tuple[bytes, list[tuple[int, int]]]:
     return b"".join(records), spans
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(25), deadline=None, suppress_health_check=SLOW_OK)
 @given(ordered_chunks, reads)
 def test_writer_files_read_back_as_written(folder, chunks, sizes) -> None:
     """What PcapngWriter writes reads back: every chunk with its bytes, direction and error, its time to
@@ -437,7 +438,7 @@ def test_writer_files_read_back_as_written(folder, chunks, sizes) -> None:
         assert all(abs(e[2] - c.t) < 1.5e-6 for e, c in zip(back, kept, strict=True))
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(30), deadline=None, suppress_health_check=SLOW_OK)
 @given(ordered_chunks.filter(bool), st.integers(0, 10**6), st.booleans(), reads)
 def test_a_cut_file_gives_every_whole_record_and_counts_the_cut_one(folder, chunks, cut, pcapng, sizes):
     """A file cut at any offset (a capture still being written, a copy cut short): the packets of every
@@ -463,7 +464,7 @@ def test_a_cut_file_gives_every_whole_record_and_counts_the_cut_one(folder, chun
         assert "ends inside" in problems[0][2] or "past the end of the file" in problems[0][2]
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(25), deadline=None, suppress_health_check=SLOW_OK)
 @given(ordered_chunks.filter(lambda c: len(c) >= 2), st.integers(0, 10**6),
        st.lists(st.integers(0xC0, 0xFF), min_size=1, max_size=120), st.booleans(), reads)
 def test_junk_between_records_is_counted_exactly_and_reading_goes_on(folder, chunks, at, junk, pcapng, sizes):

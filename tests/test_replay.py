@@ -41,7 +41,7 @@ def answer(frame_or_raw: Frame | bytes, t: float | None = None) -> Answer:
 
 # ---- the comparison ----
 
-@settings(max_examples=60)
+@settings(max_examples=budget(60))
 @given(frames(spec.ANSWER))
 def test_an_answer_compared_with_itself_is_the_same(frame):
     """The same answer bytes are the same, whatever the frame."""
@@ -49,7 +49,7 @@ def test_an_answer_compared_with_itself_is_the_same(frame):
     assert compare([a], [answer(frame)]).same
 
 
-@settings(max_examples=80)
+@settings(max_examples=budget(80))
 @given(frames(spec.ANSWER), frames(spec.ANSWER))
 def test_two_answers_differ_by_kind_or_by_the_fields_that_differ(e, g):
     """Two answers: same iff their bytes are; an alarm for a normal answer (or the reverse) is named as
@@ -95,7 +95,7 @@ lines_strategy = st.lists(st.tuples(
     st.floats(0.0, 0.05)), min_size=1, max_size=12)
 
 
-@settings(max_examples=60)
+@settings(max_examples=budget(60))
 @given(lines_strategy)
 def test_script_keeps_every_line_its_answers_and_their_timing(conversation):
     """Every host line is kept in order, byte for byte, with the answers paired with it, the same bytes
@@ -266,7 +266,7 @@ def _script(*lines: tuple[bytes, list[bytes]]):
     return builder.build()
 
 
-@settings(max_examples=60)
+@settings(max_examples=budget(60))
 @given(st.lists(st.sampled_from([b"0RV\r\n", b"0RS\r\n", b"0RP1\r\n", b"0RC\r\n"]), min_size=1, max_size=10),
        st.data())
 def test_a_host_that_repeats_lines_still_lines_up(lines, data):

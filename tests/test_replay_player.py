@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import frames
@@ -50,7 +51,7 @@ def play(script: Script, url: str = SIM, **kwargs) -> list:
         port.close()
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=budget(12), deadline=None)
 @given(st.lists(st.one_of(frames(spec.COMMAND).map(lambda f: f.to_bytes()), st.sampled_from(MALFORMED)),
                 min_size=1, max_size=8))
 def test_a_deterministic_device_replayed_answers_the_same(lines):

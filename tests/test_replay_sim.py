@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 import serial
-from conftest import CAPTURES
+from conftest import CAPTURES, budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -39,7 +39,7 @@ def pop_all(device: ReplayingDevice, until: float) -> list[tuple[float, bytes]]:
     return out
 
 
-@settings(max_examples=40)
+@settings(max_examples=budget(40))
 @given(st.lists(st.floats(0.0, 0.5), min_size=1, max_size=6), st.sampled_from([0.0, 0.5, 1.0, 2.0]))
 def test_captured_answers_come_after_the_captured_turnaround_scaled(delays, scale):
     """Each matched line is answered with the captured bytes, due its captured delay (times

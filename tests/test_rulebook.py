@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_conversation_unseen import talk  # command and answer pairs 0.1 s apart
@@ -213,7 +214,7 @@ EXCHANGES = st.sampled_from([
     (b"0RS\r\n", b"0RS02\r\n"), (b"0RV\r\n", None), (b"0rs\r\n", b"0RS12\r\n")])
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(st.lists(EXCHANGES, max_size=10))
 def test_readings_set_every_severity(pairs):
     """Over any conversation, each violation's severity is its rule's under the ``readings`` setting (so

@@ -5,6 +5,7 @@ mode 0. The simulator and the rulebook say the same (issue 23 item 4)."""
 from __future__ import annotations
 
 import pytest
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -46,7 +47,7 @@ def test_a_refused_0cm0_does_not_switch_to_mode_0():
     assert sim.mode == 1 and conv.knowledge.mode.value == 1
 
 
-@settings(max_examples=80, deadline=None)
+@settings(max_examples=budget(80), deadline=None)
 @given(st.lists(st.sampled_from(LINES), max_size=15))
 def test_the_simulator_and_the_rulebook_agree_on_the_mode(lines):
     """Whatever lines come, the mode the rulebook holds (when it holds one) is the simulator's."""

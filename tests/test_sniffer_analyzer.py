@@ -368,7 +368,7 @@ def test_sides_in_records_and_summary_by_side():
 from test_decode_equivalence import chunks_of, cuts, events, gaps, line_error_at  # noqa: E402
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(events, gaps, cuts, st.booleans(), line_error_at, st.integers(1, 7))
 def test_records_are_made_only_where_wanted_and_change_nothing(items, dts, sizes, timed, flagged, limit):
     """One path from chunks to verdicts: ``feed`` chunk by chunk, ``feed_many`` in batches of any size

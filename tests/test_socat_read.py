@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import budget
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -277,7 +278,7 @@ def test_hard_cases_read_the_same_at_every_block_size(text: str, max_line: int |
     read_any_block(text.replace("\n", "\r\n"), (socat_mod.BLOCK, 1, 7, 64), max_line=max_line)
 
 
-@settings(max_examples=120, deadline=None)
+@settings(max_examples=budget(120), deadline=None)
 @given(st.data(), _dump(), st.sampled_from(BLOCKS) | st.integers(1, 400),
        st.sampled_from([None, None, None, None, 300, 257, 64, 20]), st.sampled_from([None, None, ">", "<"]),
        st.sampled_from([None, None, None, 1, 2, 5]))
@@ -340,7 +341,7 @@ def clean_dumps(draw: st.DrawFn) -> tuple[str, list[tuple[str, bytes, float]], b
     return "".join(out), want, v
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(clean_dumps(), st.sampled_from(BLOCKS))
 def test_clean_dumps_give_their_transfers(dump: tuple[str, list[tuple[str, bytes, float]], bool],
                                           block: int) -> None:
@@ -378,7 +379,7 @@ def test_times_are_wallclock_s_bit_for_bit() -> None:
     assert report["problems"] and all(": time runs backwards: " in p for p in report["problems"])
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(st.sampled_from(DATES[:3]), st.integers(0, 86000),
        st.lists(st.tuples(st.sampled_from([0, 0, 0, 0, 1, 1, 59, 60, 61, 3600]), st.integers(0, 999999),
                           st.booleans()), min_size=1, max_size=40),
@@ -557,7 +558,7 @@ def _garbled(draw: st.DrawFn) -> tuple[str, list[tuple[str, bytes, float]], list
     return "".join(line + "\n" for line in lines), want, numbers
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(_garbled(), st.sampled_from(BLOCKS) | st.integers(1, 400))
 def test_junk_between_lines_is_reported_at_its_line_and_the_transfers_read_whole(
         dump: tuple[str, list[tuple[str, bytes, float]], list[int]], block: int) -> None:
@@ -573,7 +574,7 @@ def test_junk_between_lines_is_reported_at_its_line_and_the_transfers_read_whole
     assert report["unread_lines"] == len(numbers) and report["unread_bytes"] == 0 and end[0] == "end"
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=budget(40), deadline=None)
 @given(clean_dumps(), st.data())
 def test_line_ends_mixed_anyhow_read_the_same(dump: tuple[str, list[tuple[str, bytes, float]], bool],
                                               more: st.DataObject) -> None:
@@ -598,7 +599,7 @@ _HEXLIKE_TEXT = st.tuples(st.lists(st.one_of(_HEXLIKE_LINE, st.just(""), st.just
                           st.booleans()).map(lambda r: ("\n".join(r[0]) + ("\n" if r[1] else "")).encode())
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(st.lists(st.tuples(st.sampled_from("><"), st.one_of(_HEXLIKE_TEXT, st.sampled_from(FRAMES[:4]))),
                 min_size=1, max_size=5), st.booleans())
 def test_v_text_that_looks_like_hex_rows_is_read_as_text(transfers: list[tuple[str, bytes]],

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 import traffic
+from conftest import budget
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -45,7 +46,7 @@ def test_clean_kinds_decode_with_no_violation(kind: traffic.Kind) -> None:
     assert [codes for _, codes in records if codes] == []
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=budget(12), deadline=None)
 @given(seed=st.integers(0, 2**32), kind=st.sampled_from(CLEAN))
 def test_clean_kinds_are_clean_for_any_seed(seed: int, kind: traffic.Kind) -> None:
     """Whatever the seed, the clean kinds' opening and first cycles (homing, teaching, moves, polls,

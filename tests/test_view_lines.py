@@ -27,6 +27,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from conftest import budget
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from rich.console import Console
@@ -119,7 +120,7 @@ def assert_one_view_says_what_records_say(records: list[Record]) -> None:
 
 # ---------------------------------------------------------------- conversations ----
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=budget(30), deadline=None)
 @given(events, gaps, cuts, st.booleans(), line_error_at, st.booleans())
 @example([], [0.0] * 40, [1], True, set(), True)
 def test_views_on_generated_conversations(items, dts, sizes_, timed, flagged, close_late):
@@ -241,7 +242,7 @@ def record_streams(draw: Any) -> list[Record]:
     return records + [records[k] for k in again]
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(record_streams())
 def test_views_on_hand_built_records(records):
     """Edge values of every field: the views still say exactly what the records say."""
@@ -269,7 +270,7 @@ def shared_bytes(draw: Any) -> list[Record]:
     return records
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=budget(50), deadline=None)
 @given(shared_bytes())
 def test_records_sharing_bytes_each_get_their_own_line(records):
     """The views make a frame's part of a line once per distinct frame: a record whose bytes an earlier
@@ -298,7 +299,7 @@ latencies_near_ties = st.one_of(
     st.floats(0, 2e6), st.sampled_from([999999.95, 1e6, 1e6 + 0.05, 0.05, 0.0495, 0.0505]))
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=budget(150), deadline=None)
 @given(st.lists(latencies_near_ties, min_size=1, max_size=20))
 def test_text_view_latency_is_round_to_3_then_1_digit(ms):
     """An answer's latency on its text line is ``latency_ms`` (rounded to 3 decimals) shown with one
@@ -338,7 +339,7 @@ def _ties(scale: int, digits: int, count: int) -> list[float]:
     return out
 
 
-@settings(max_examples=1500, deadline=None)
+@settings(max_examples=budget(1500), deadline=None)
 @given(st.one_of(st.floats(0.001, 2.0**32), st.floats(0.001, 1.0), st.floats(8192, 2.0**32),
                  st.sampled_from([0.001, 2.0**32 - 2**-21, 4294967295.9999995, *_ties(1 << 30, 6, 20),
                                   *_ties(1, 6, 20), *_ties(8192, 6, 20)])))
@@ -349,7 +350,7 @@ def test_fixed_is_repr_of_round_to_6_digits(x):
     assert_line_is_dumped(t=x)
 
 
-@settings(max_examples=1500, deadline=None)
+@settings(max_examples=budget(1500), deadline=None)
 @given(st.one_of(st.floats(0.001, 1e12, exclude_max=True), st.floats(0.001, 100), st.floats(1e9, 1e12),
                  st.sampled_from([0.001, 1.2345, 1.0005, 2.5e-3, 999999999999.9995, 999999999999.9996,
                                   *_ties(1, 3, 20), *_ties(1000, 3, 20)])))
@@ -361,7 +362,7 @@ def test_fixed_is_repr_of_round_to_3_digits(x):
     assert_line_is_dumped(latency_s=x / 1000.0)
 
 
-@settings(max_examples=1000, deadline=None)
+@settings(max_examples=budget(1000), deadline=None)
 @given(st.one_of(st.none(), st.floats(), st.sampled_from(EDGE_TIMES + EDGE_LATENCIES), st.integers(),
                  st.booleans()))
 def test_json_numbers_of_any_value(x):
@@ -432,7 +433,7 @@ def runs_of_times(draw: Any) -> list[Any]:
 
 
 @pytest.mark.parametrize("zone", ["UTC", "Europe/Berlin", "Australia/Lord_Howe", "America/St_Johns"])
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=budget(60), deadline=None)
 @given(st.lists(clock_times, min_size=1, max_size=30), runs_of_times())
 @example([T0 + 0.9999996, T0 + 0.5, 3.9999995, 3.25], [T0 + 0.9999995, T0 + 0.75])  # rounded into the next
 def test_text_view_clock_is_datetimes(zone, ts, run):
