@@ -436,3 +436,17 @@ def test_a_line_error_is_counted_once_for_an_answer_that_shows_earlier_lines_una
     assert [r.type for r in recs].count("timeout") == 1
     assert sum(1 for r in recs if r.type != "timeout" and r.line_errors) == 1
     assert counting.summary()["line_errors"] == 1
+
+
+def test_a_window_that_closed_before_the_answer_began_is_closed_however_the_answer_is_cut():
+    """Behind a move still within its window, an overlapped 0RP whose window closed before the answer
+    began is closed when the answer begins, whether the answer comes whole or byte by byte: the answer
+    pairs with the later 0RP that still waits (found by hypothesis: whole, it paired with the closed one)."""
+    t0 = 1_790_000_000.0
+    script = [(t0, H, b"0RP3\r\n"), (t0, H, b"0MV3C3001000\r\n"), (t0 + 0.001, H, b"0RP3\r\n"),
+              (t0 + 1.001, H, b"0RP3\r\n"), (t0 + 1.002, D, b"0RP39302012345\r\n")]
+    whole = [Chunk(t, d, b) for t, d, b in script]
+    bytewise = [Chunk(t, d, b[k:k + 1]) for t, d, b in script for k in range(len(b))]
+    answers = [[r for r in analyze(chunks) if isinstance(r, FrameRecord) and r.dir == D]
+               for chunks in (whole, bytewise)]
+    assert [r.reply_to for r in answers[0]] == [r.reply_to for r in answers[1]] == [3]

@@ -453,7 +453,7 @@ class Conversation:
         out: list[Verdict] = []
         if t_first is not None:  # time passes to it (``tick``, inline: the usual frame closes no window)
             if self._queue.due < t_first:
-                out = self.tick(t_first, t_first)
+                out = self.tick(t_first, None)  # (a line whose window closed before it began is closed)
             elif self._last_t is None or t_first > self._last_t:
                 self._last_t = t_first
         self._answer_began = None
