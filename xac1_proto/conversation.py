@@ -288,6 +288,7 @@ class Conversation:
         self.unanswerable = 0  # one way: host lines owed an answer the data cannot hold (counted, not kept)
         self.readings = readings
         self._severity = rules.severities(readings)
+        self._regrade = readings != rules.DEFAULT_READINGS  # the decoder's violations graded again
         self._codes = {rule: row.code for rule, row in rules.RULES.items()}  # each rule's violation code
         self.no_answer_timeout = no_answer_timeout
         self.storm_limit = storm_limit
@@ -408,18 +409,15 @@ class Conversation:
                    window: float | None = None) -> list[Verdict]:
         """A frame-shaped host line (from a frame start to LF). ``window``: how long the host will wait
         for its answer, when it says so (the client); else the engine's answer window."""
-        out: list[Verdict] = []
-        if t_first is not None:  # time passes to it (``tick``, inline: the usual frame closes no window)
-            if self._queue.due < t_first:
-                out = self.tick(t_first, self._answer_began)
-            elif self._last_t is None or t_first > self._last_t:
-                self._last_t = t_first
+        # time passes to it (``tick``), but while no window can close before it (``Waiting.due``)
+        out = self.tick(t_first, self._answer_began) if t_first is not None and self._queue.due < t_first \
+            else []
         i = self._next_i
         self._next_i = i + 1
         if type(raw) is not bytes:
             raw = bytes(raw)
         reading = read_frame(raw, spec.COMMAND)
-        if reading.violations and self.readings != rules.DEFAULT_READINGS:
+        if self._regrade:  # (the decoder grades by the default readings)
             reading = self._regraded(reading)
         frame, violations, header, error = reading
         found = [*violations]
@@ -450,17 +448,13 @@ class Conversation:
                      t_last: float | None = None) -> list[Verdict]:
         """A frame-shaped device line: an answer. Its arrival passes time to ``t_first``: lines whose
         window closed before it began get ``no-answer`` (``tick``; an answer in time is in time)."""
-        out: list[Verdict] = []
-        if t_first is not None:  # time passes to it (``tick``, inline: the usual frame closes no window)
-            if self._queue.due < t_first:
-                out = self.tick(t_first, None)  # (a line whose window closed before it began is closed)
-            elif self._last_t is None or t_first > self._last_t:
-                self._last_t = t_first
+        # time passes to it (``tick``: a line whose window closed before it began is closed), but while no
+        # window can close before it (``Waiting.due``)
+        out = self.tick(t_first, None) if t_first is not None and self._queue.due < t_first else []
         self._answer_began = None
         i = self._next_i
         self._next_i = i + 1
-        if type(raw) is not bytes:
-            raw = bytes(raw)
+        raw = bytes(raw)  # (bytes themselves, not a copy)
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
         found = [*self._graded(violations)] if violations else []
         if self.one_way:  # no command can be in the data: only what the answer's own bytes show
@@ -472,13 +466,9 @@ class Conversation:
         if skipped or line is None:
             out += self._mispaired(line, skipped, header, t_first, i, found)
         self._judge_answer(line, header, frame, found)
-        if line is None:
-            reply_to = latency = None
-        else:
-            reply_to = line.i
-            latency = None if t_first is None or line.t_last is None else t_first - line.t_last
-        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), reply_to, latency,
-                             t_first, t_last, None)))
+        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found),
+                             None if line is None else line.i, _latency(line, t_first), t_first, t_last,
+                             None)))
         return out
 
     def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -592,8 +582,7 @@ class Conversation:
         if self._motion is not None or self._queue:
             kind, overlapped = self._sent_while_waiting(kind, header, t_last, found)
         move = frame if kind == COMMAND and header in spec.MOVE_HEADERS else None
-        waited_s, guessed = (window, False) if window is not None \
-            else (self.no_answer_timeout, False) if move is None else self._move_window(move)
+        waited_s, guessed = self._window_for(move, window)
         line = WaitingLine(i, kind, header, frame, t_last, waited_s, overlapped, move is not None, plain,
                            junk, guessed)
         if self.one_way:  # its answer cannot be in the data: counted, not kept
@@ -604,9 +593,13 @@ class Conversation:
             self._motion = line
         return line
 
-    def _move_window(self, move: Frame) -> tuple[float, bool]:
-        """A move's answer window (``answer_window``), and whether it rests on the guessed speed table (a
-        line's window is the host's when it says how long it waits, the client; else the plain timeout)."""
+    def _window_for(self, move: Frame | None, window: float | None) -> tuple[float, bool]:
+        """A line's answer window, and whether it rests on the guessed speed table: ``window`` when the
+        host says how long it waits (the client), a move's (``answer_window``), else the timeout."""
+        if window is not None:
+            return window, False
+        if move is None:
+            return self.no_answer_timeout, False
         return self.answer_window(move), self.speeds.guessed
 
     def _sent_while_waiting(self, kind: str, header: str | None, t_last: float | None,

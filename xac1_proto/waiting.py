@@ -106,9 +106,9 @@ class Waiting(deque[WaitingLine]):
         """The head line, taken out, when an answer of ``header`` (a command's, not an alarm) begun at
         ``t`` is its own: of its header, sent before ``t``, not discarded during a move unless it alone
         waits. None when the answer is not the head's (the engine then looks further down the queue)."""
-        head = self[0] if self else None
-        if head is None or head.header != header:
+        if not self or self[0].header != header:
             return None
+        head = self[0]
         if (t is not None and head.t_last is not None and head.t_last > t) \
                 or (head.kind == DISCARD and len(self) > 1):
             return None
