@@ -63,3 +63,29 @@ def test_the_entry_point_is_the_early_policy() -> None:
     assert {m for m in loaded if not m.startswith(("xac1_proto", "__editable__"))} <= {"signal", "types"}, \
         loaded
     assert signal.SIGINT in SIGNALS
+
+
+INSTALLING = """
+import importlib.metadata, os, signal, sys
+sig = int(sys.argv[1])
+def profile(frame, event, arg):  # the dispatcher's policy has just set its handler for sig
+    if (event == "return" and frame.f_code is signal.signal.__code__ and frame.f_locals["signalnum"] == sig
+            and frame.f_back.f_code.co_name == "_install"):
+        sys.setprofile(None)
+        os.kill(os.getpid(), sig)
+sys.setprofile(profile)
+(entry,) = tuple(importlib.metadata.entry_points(group="console_scripts", name="xac1"))
+sys.argv = ["xac1", *sys.argv[2:]]
+sys.exit(entry.load()())
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", SIGNALS, ids=signal_name)
+def test_a_signal_while_the_dispatcher_installs_its_policy_ends_quietly(sig: int) -> None:
+    """A signal handled just after the dispatcher set its handler for it, still inside ``startup()``:
+    ``xac1: stopped by <SIGNAL>``, exit 2 (was: an ``Interrupted`` traceback and exit 1, seen by CI as
+    ``xac1 sim`` sent SIGINT ~50 ms after its start)."""
+    done = subprocess.run([sys.executable, "-c", INSTALLING, str(sig), "decode", "captures/socat-xv.log"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert (done.returncode, done.stderr, done.stdout) == (2, f"xac1: stopped by {signal_name(sig)}\n", "")

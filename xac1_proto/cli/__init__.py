@@ -107,11 +107,11 @@ def main(argv: list[str] | None = None) -> int:
     from ..signals import EXIT_EARLY, Interrupted, exiting, running, startup
 
     entry = argv is None
-    startup()  # SIGINT, SIGTERM, SIGHUP before a command takes over: a quiet end, exit 2
     argv = sys.argv[1:] if argv is None else argv
-    if entry and "_ARGCOMPLETE" in os.environ:
-        _complete(argv)
-    try:
+    try:  # a signal may land as soon as the first handler is set, while startup() sets the others
+        startup()  # SIGINT, SIGTERM, SIGHUP before a command takes over: a quiet end, exit 2
+        if entry and "_ARGCOMPLETE" in os.environ:
+            _complete(argv)
         args = _build(argv).parse_args(argv)
         running()
         return int(args._run(args) or 0)
