@@ -135,6 +135,11 @@ class Knowledge:
 
 
 _NOT_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
+# the latch's states and the events of most answers, as constants: on Python 3.11 a member read off its
+# Enum class goes through the enum metaclass's ``__getattr__``, ten times the cost of a constant
+_FREE, _HELD, _STOP = LatchState.FREE, LatchState.HELD, LatchState.STOP
+_STOP_UNSEEN, _STOP_UNSEEN_OVER = LatchState.STOP_UNSEEN, LatchState.STOP_UNSEEN_OVER
+_NORMAL, _SAME, _OTHER = LatchEvent.NORMAL, LatchEvent.SAME, LatchEvent.OTHER
 _NOTHING_SKIPPED: Final = ()  # ``_pair``: no line skipped (the usual answer)
 
 # a verdict's codes (each once), whose fault each is, and each one's worst severity
@@ -359,12 +364,12 @@ class Conversation:
         k = self.knowledge
         latched = k.latched.value
         if latched is None:
-            return LatchState.FREE
+            return _FREE
         if latched != spec.ALARM_ESTOP:
-            return LatchState.HELD
+            return _HELD
         if self._stop_known_pressed():
-            return LatchState.STOP
-        return LatchState.STOP_UNSEEN if k.under_stop.value is None else LatchState.STOP_UNSEEN_OVER
+            return _STOP
+        return _STOP_UNSEEN if k.under_stop.value is None else _STOP_UNSEEN_OVER
 
     def storm_state(self) -> StormState:
         """Where the host stands in a run of communication errors (``latch.StormState``)."""
@@ -422,7 +427,7 @@ class Conversation:
         frame, violations, header, error = reading
         found = [*violations]
         if self._unreset_alarm or self._reset_in_storm or self.knowledge.storm_run >= self.storm_limit:
-            found += self._host_duties(header, error)
+            self._host_duties(header, error, found)
         if error:
             line = self._enqueue(i, ERROR, header, None, t_last, found, window)
         else:
@@ -724,23 +729,22 @@ class Conversation:
 
     # ---- host duties ----
 
-    def _host_duties(self, header: str | None, error: bool) -> list[Violation]:
+    def _host_duties(self, header: str | None, error: bool, found: list[Violation]) -> None:
         """Storm and alarm-ignored (docs/protocol.md "Behaviour the vendor text states": host duty,
-        latched alarm): the storm run's table (``latch.HOST_DUTY``) and the reset owed."""
+        latched alarm), into ``found``: the storm run's table (``latch.HOST_DUTY``; below the storm limit
+        the state is calm, whose cells name no duty) and the reset owed."""
         k = self.knowledge
-        out = []
         good_reset = header == spec.RESET_HEADER and not error
-        duty = HOST_DUTY[(self.storm_state(), good_reset)]
+        duty = HOST_DUTY[(self.storm_state(), good_reset)] if k.storm_run >= self.storm_limit else None
         if duty == "storm-recovery":
-            out.append(self._v(duty, sentences.storm_recovery, header, k.storm_run, good_reset))
+            found.append(self._v(duty, sentences.storm_recovery, header, k.storm_run, good_reset))
         elif duty == "comm-error-storm":
-            out.append(self._v(duty, sentences.comm_error_storm, header, k.storm_run, self.storm_limit))
+            found.append(self._v(duty, sentences.comm_error_storm, header, k.storm_run, self.storm_limit))
         self._reset_in_storm = False
         if self._unreset_alarm and not good_reset:
-            out.append(self._v("alarm-ignored", sentences.alarm_ignored, header))
+            found.append(self._v("alarm-ignored", sentences.alarm_ignored, header))
         if good_reset:
             self._unreset_alarm = False
-        return out
 
     # ---- the answer's rules ----
 
@@ -771,7 +775,7 @@ class Conversation:
         establishes (judged against the mode before it; silent item 11: communicating gives mode 1)."""
         k = self.knowledge
         if k.latched.value is not None or k.stop_cleared.value is not None:  # else the latch has nothing
-            self._latch(self.latch_state(), LatchEvent.NORMAL, found, line, None)  # to say (FREE: no rule)
+            self._latch(self.latch_state(), _NORMAL, found, line, None)  # to say (FREE: no rule)
         command = line.frame
         if command is not None and self._pairing(line, command, header, frame, found) \
                 and not (found and _is_error(found)):
@@ -825,12 +829,12 @@ class Conversation:
         k = self.knowledge
         if line is not None and line.harmless and code == k.stop_cleared.value:
             return LatchEvent.CLEARED_BACK
-        return LatchEvent.SAME if code == k.latched.value else LatchEvent.OTHER
+        return _SAME if code == k.latched.value else _OTHER
 
     def _latch(self, state: LatchState, event: LatchEvent, found: list[Violation], line: WaitingLine | None,
                code: int | None) -> None:
         """Look ``(state, event)`` up in ``latch.LATCH``: record the rule it breaks, apply its effect."""
-        rule, effect = _LATCH_CELLS[(state, event)]
+        rule, effect = _LATCH_CELLS[state][event]
         if rule is not None:
             found.append(self._latch_violation(rule, line, code))
         if effect is not None:
@@ -1010,7 +1014,7 @@ class Conversation:
         ``forget`` column of its header's row)."""
         c = line.frame
         if c is not None:
-            HEADER_RULES[c.header].forget(self.knowledge, c, line.kind == COMMAND)
+            HEADER_RULES[c.HEADER].forget(self.knowledge, c, line.kind == COMMAND)
 
     # ---- move time (silent items 15, 17) ----
 
@@ -1127,8 +1131,13 @@ _LATCH_EFFECTS: Final[dict[Effect, Callable[[Knowledge], None] | None]] = {
     Effect.RELEASE: _release,
 }
 assert set(_LATCH_EFFECTS) == set(Effect), "every effect is applied"
-# ``latch.LATCH`` with each effect's function (one look-up an event)
-_LATCH_CELLS: Final = {key: (cell.rule, _LATCH_EFFECTS[cell.effect]) for key, cell in LATCH.items()}
+# ``latch.LATCH`` with each effect's function, by state then event (two look-ups of members hashed by
+# identity, no key tuple to make)
+_LatchCell = tuple[str | None, Callable[[Knowledge], None] | None]  # the rule broken, the effect applied
+_LATCH_CELLS: Final[dict[LatchState, dict[LatchEvent, _LatchCell]]] = {
+    state: {event: (cell.rule, _LATCH_EFFECTS[cell.effect])
+            for (in_state, event), cell in LATCH.items() if in_state is state}
+    for state in LatchState}
 
 
 # ---- what a failed exchange forgets (the ``forget`` column) ----

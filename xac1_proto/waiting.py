@@ -98,7 +98,7 @@ class Waiting(deque[WaitingLine]):
         return self[0] if self else None
 
     def append(self, line: WaitingLine) -> None:
-        super().append(line)
+        deque.append(self, line)
         if line.deadline is not None and line.deadline < self.due:
             self.due = line.deadline
 
