@@ -330,14 +330,14 @@ class Tally:
         commands, answers, headers = self.commands, self.answers, self._headers
         latencies: defaultdict[str, list[float]] = defaultdict(list)
         host_bytes = device_bytes = junk = 0
-        found: dict[tuple[str, ...], int] = {}  # (sender, code, ...) -> verdicts
+        found: dict[str, dict[Any, int]] = {"host": {}, "device": {}}  # sender -> code (or codes) -> verdicts
         for v in seen:
             kind = v.kind
             violations = v.violations
             if violations:
-                key = (v.sender, violations[0].code) if len(violations) == 1 \
-                    else (v.sender, *map(_code, violations))
-                found[key] = found.get(key, 0) + 1
+                by_key = found[v.sender]
+                key = violations[0].code if len(violations) == 1 else tuple(map(_code, violations))
+                by_key[key] = by_key.get(key, 0) + 1
             if kind == "host-frame":
                 host_bytes += len(v.raw)
                 header = v.header or "?"
@@ -370,10 +370,11 @@ class Tally:
             if stats is None:
                 stats = self.latencies[command] = LatencyStats()
             stats.extend(seconds)
-        for (sender, *codes), n in found.items():
-            for code in dict.fromkeys(codes):  # (a verdict's codes, each once)
-                self.codes[code] += n
-                self.by_side[side_of(code, sender)][code] += n  # type: ignore[arg-type]
+        for sender, by_key in found.items():
+            for key, n in by_key.items():
+                for code in (key,) if type(key) is str else dict.fromkeys(key):  # (a verdict's codes, once)
+                    self.codes[code] += n
+                    self.by_side[side_of(code, sender)][code] += n  # type: ignore[arg-type]
 
     def _count_violations(self, codes: tuple[str, ...], sides: tuple[str, ...]) -> None:
         self.codes.update(codes)
