@@ -95,7 +95,10 @@ class Analyzer:
         try:
             for chunk in islice(chunks, limit):
                 taken += 1
-                t, direction, data, error = chunk.t, chunk.dir, chunk.data, chunk.error
+                t = chunk.t  # (one field a statement: four at once would build a tuple to unpack)
+                direction = chunk.dir
+                data = chunk.data
+                error = chunk.error
                 framer = framers.get(direction)
                 if framer is None:
                     raise ValueError(f"chunk direction must be 'host' or 'device', got {direction!r}")

@@ -140,6 +140,7 @@ _NOT_KNOWN: Final[Fact] = Fact()  # an unknown fact (immutable: shared)
 _FREE, _HELD, _STOP = LatchState.FREE, LatchState.HELD, LatchState.STOP
 _STOP_UNSEEN, _STOP_UNSEEN_OVER = LatchState.STOP_UNSEEN, LatchState.STOP_UNSEEN_OVER
 _NORMAL, _SAME, _OTHER = LatchEvent.NORMAL, LatchEvent.SAME, LatchEvent.OTHER
+_SWITCH_MODE: Final = SwitchMode.HEADER  # (a class's attribute is a look-up a read on Python 3.11)
 _NOTHING_SKIPPED: Final = ()  # ``_pair``: no line skipped (the usual answer)
 
 # a verdict's codes (each once), whose fault each is, and each one's worst severity
@@ -779,10 +780,10 @@ class Conversation:
         command = line.frame
         if command is not None and self._pairing(line, command, header, frame, found) \
                 and not (found and _is_error(found)):
-            learn = HEADER_RULES[header].learn
+            learn = _LEARN[header]
             if learn is not None:
                 learn(self, command, frame, found)
-            if header != SwitchMode.HEADER:
+            if header != _SWITCH_MODE:
                 k.mode = _MODE_1
         else:
             self._outcome_unknown(line)
@@ -1013,8 +1014,8 @@ class Conversation:
         """A line whose answer is missing, garbled or faulty: what it would change is unknown now (the
         ``forget`` column of its header's row)."""
         c = line.frame
-        if c is not None:
-            HEADER_RULES[c.HEADER].forget(self.knowledge, c, line.kind == COMMAND)
+        if c is not None:  # (a frame's line has its header)
+            _FORGET[line.header](self.knowledge, c, line.kind == COMMAND)
 
     # ---- move time (silent items 15, 17) ----
 
@@ -1202,6 +1203,12 @@ HEADER_RULES: Final[dict[str, HeaderRules]] = {
 }
 assert set(HEADER_RULES) == {fs.header for fs in spec.FRAME_SPECS if fs.role == spec.COMMAND}, \
     "every command header has its row"
+# its columns, each one look-up an exchange (a row's field read off its NamedTuple is an attribute
+# look-up through a descriptor)
+_LEARN: Final[dict[str, Callable[..., None] | None]] = {
+    header: row.learn for header, row in HEADER_RULES.items()}
+_FORGET: Final[dict[str | None, Callable[[Knowledge, Frame, bool], None]]] = {
+    header: row.forget for header, row in HEADER_RULES.items()}
 
 
 __all__ = ["HEADER_RULES", "Conversation", "Fact", "HeaderRules", "Knowledge", "PointData", "Verdict",
