@@ -22,7 +22,6 @@ there is; the engine's docstring says what it then concludes.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Iterator
 from itertools import islice
 from typing import Final
@@ -271,21 +270,22 @@ def _inside_frame(event: FrameBytes | Junk) -> bool:
 
 
 # a frame record from its fields in order, as ``FrameRecord._make`` builds it but with no Python frame of its
-# own (every field is given)
-_frame_record: Final = functools.partial(tuple.__new__, FrameRecord)
+# own (every field is given): ``_tuple_new(FrameRecord, fields)``
+_tuple_new: Final = tuple.__new__
 
 
 def to_record(v: Verdict, line_errors: tuple[str, ...] = (), reason: str = "") -> Record:
     """The record of one verdict (the docs/output.md schema)."""
-    if v.violations:
-        details = tuple(x.message for x in v.violations)
+    kind, sender, i, raw, header, frame, violations, reply_to, latency_s, t, t_last, waited_s = v
+    if violations:
+        details = tuple(x.message for x in violations)
         codes, sides, severities = v.codes, v.sides, v.severities
     else:  # the clean frame: the same empty tuples, without the generators
         details = codes = sides = severities = ()
-    kind, sender, i, raw, header, frame, _violations, reply_to, latency_s, t, t_last, waited_s = v
     if kind == "host-frame" or kind == "device-frame":
-        return _frame_record((i, t, sender, raw, header, frame, codes, details, reply_to, latency_s, t_last,
-                              line_errors, sides, waited_s if kind == "host-frame" else None, severities))
+        return _tuple_new(FrameRecord, (i, t, sender, raw, header, frame, codes, details, reply_to, latency_s,
+                                        t_last, line_errors, sides,
+                                        waited_s if kind == "host-frame" else None, severities))
     if kind == "no-answer":
         assert v.reply_to is not None
         return TimeoutRecord(command=v.reply_to, t=v.t, header=v.header, waited_s=v.waited_s,

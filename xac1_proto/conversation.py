@@ -60,7 +60,7 @@ from typing import Final, Generic, Literal, NamedTuple, TypeVar
 
 from . import motion, rules, sentences, spec
 from .codec import Reading, header_of, read_frame
-from .errors import Violation, violation_of
+from .errors import Violation
 from .frames import (
     AlarmReset,
     Frame,
@@ -215,9 +215,9 @@ def _tally(graded: tuple[tuple[spec.ViolationCode, spec.Severity], ...], sender:
     return codes, tuple(side_of(code, sender) for code in codes), tuple(worst.values())
 
 
-# a verdict from its fields in order, as ``Verdict._make`` builds it but with no Python frame of its own
-# (two verdicts an exchange; every field is given)
-_verdict: Final = functools.partial(tuple.__new__, Verdict)
+# a verdict (``_tuple_new(Verdict, fields)``) or violation from its fields in order, as ``_make`` builds it
+# but with no Python frame of its own (two verdicts an exchange; every field is given)
+_tuple_new: Final = tuple.__new__
 
 
 # the answers that echo their command: the same fields as the command's, so a frame's values in wire order
@@ -314,7 +314,8 @@ class Conversation:
     def _v(self, rule: str, sentence: Callable[..., str], *values: object) -> Violation:
         """A conversation-level violation of ``rule`` (``rules.RULES``) under this conversation's
         readings; its sentence is ``sentence(*values)``, made only when shown."""
-        return violation_of((self._codes[rule], None, rule, self._severity[rule], None, sentence, values))
+        return _tuple_new(Violation, (self._codes[rule], None, rule, self._severity[rule], None, sentence,
+                                      values))
 
     def _regraded(self, reading: Reading) -> Reading:
         """The decoder's reading of a host line (``codec.read_frame``), graded under ``readings``."""
@@ -433,8 +434,8 @@ class Conversation:
             line = self._enqueue(i, ERROR, header, None, t_last, found, window)
         else:
             line = self._enqueue(i, COMMAND, header, frame, t_last, found, window, not violations)
-        out.append(_verdict(("host-frame", HOST, i, raw, header, frame, tuple(found), None, None, t_first,
-                             t_last, line.waited_s)))
+        out.append(_tuple_new(Verdict, ("host-frame", HOST, i, raw, header, frame, tuple(found), None, None,
+                                        t_first, t_last, line.waited_s)))
         return out
 
     def host_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,
@@ -464,17 +465,17 @@ class Conversation:
         frame, violations, header, _error = read_frame(raw, spec.ANSWER)
         found = [*self._graded(violations)] if violations else []
         if self.one_way:  # no command can be in the data: only what the answer's own bytes show
-            out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found), None, None,
-                                 t_first, t_last, None)))
+            out.append(_tuple_new(Verdict, ("device-frame", DEVICE, i, raw, header, frame, tuple(found), None,
+                                            None, t_first, t_last, None)))
             return out
         line, skipped = self._pair(header, t_first) if self._late is None \
             else self._late_or_pair(header, t_first, found)
         if skipped or line is None:
             out += self._mispaired(line, skipped, header, t_first, i, found)
         self._judge_answer(line, header, frame, found)
-        out.append(_verdict(("device-frame", DEVICE, i, raw, header, frame, tuple(found),
-                             None if line is None else line.i, _latency(line, t_first), t_first, t_last,
-                             None)))
+        out.append(_tuple_new(Verdict, ("device-frame", DEVICE, i, raw, header, frame, tuple(found),
+                                        None if line is None else line.i, _latency(line, t_first), t_first,
+                                        t_last, None)))
         return out
 
     def device_junk(self, raw: bytes, t_first: float | None = None, t_last: float | None = None,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final, NamedTuple
 
@@ -44,7 +43,7 @@ class Violation(_ViolationFields):
     def said(cls, code: ViolationCode, rule: str, severity: Severity, sentence: Callable[..., str],
              *values: Any, offset: int | None = None) -> Violation:
         """A violation whose sentence is ``sentence(*values)``, made only when ``message`` is read."""
-        return violation_of((code, offset, rule, severity, None, sentence, values))
+        return _tuple_new(Violation, (code, offset, rule, severity, None, sentence, values))
 
     @property
     def message(self) -> str:
@@ -144,5 +143,5 @@ class CommunicationHalted(XAC1Error):
 
 
 # a violation from its fields in order (code, offset, rule, severity, text, sentence, values), as ``said``
-# makes it, with no Python frame of its own (the engine makes two an exchange of a misbehaving host)
-violation_of: Final[Callable[[tuple[Any, ...]], Violation]] = functools.partial(tuple.__new__, Violation)
+# makes it, with no Python frame of its own: ``_tuple_new(Violation, fields)``
+_tuple_new: Final = tuple.__new__
