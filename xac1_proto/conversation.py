@@ -106,7 +106,8 @@ class Fact(NamedTuple, Generic[T]):
 
     @property
     def judged(self) -> bool:
-        """Is an answer compared with it (known or learnt)?"""
+        """Is an answer compared with it (known or learnt)? (The engine's learners ask its test, ``status !=
+        UNKNOWN``, directly: a property is a call of its own on every answer.)"""
         return self.status != UNKNOWN
 
 
@@ -917,7 +918,7 @@ class Conversation:
         k = self.knowledge
         assert isinstance(a, StoreCurrentAnswer)
         pos = k.position
-        if pos.judged and a.pos != pos.value:
+        if pos.status != UNKNOWN and a.pos != pos.value:
             self._readback(found, f"0WC{a.n:X}'s Pos", f"{a.pos:06X}", pos,
                            f"the axis at {pos.value:06X}", "readback-position")
         k.points[a.n] = Fact(PointData(a.v, a.a, a.o, a.pos), LEARNT)
@@ -944,7 +945,7 @@ class Conversation:
         """0RS: the OUT ports read back."""
         k = self.knowledge
         o = a.o  # type: ignore[attr-defined]
-        if k.outputs.judged and o != k.outputs.value:
+        if k.outputs.status != UNKNOWN and o != k.outputs.value:
             self._readback(found, "0RS's O", o, k.outputs, f"O={k.outputs.value}", "readback-outputs")
         elif k.outputs != (o, LEARNT):
             k.outputs = Fact(o, LEARNT)
@@ -959,7 +960,7 @@ class Conversation:
         """0RV: the version read back."""
         k = self.knowledge
         version = a.version  # type: ignore[attr-defined]
-        if k.version.judged and version != k.version.value:
+        if k.version.status != UNKNOWN and version != k.version.value:
             self._readback(found, "0RV", version, k.version, f"version {k.version.value}",
                            "readback-version")
         else:
@@ -986,13 +987,13 @@ class Conversation:
         if a.pos == spec.UNKNOWN_POSITION:  # the device states it is not homed: learnt, never judged (an
             k.homed, k.position = Fact(False, LEARNT), _NOT_KNOWN  # unseen power cycle...)
             k.outputs = _NOT_KNOWN  # nothing is stated of the OUT ports across a power cycle
-        elif k.position.judged and a.pos != k.position.value:
+        elif k.position.status != UNKNOWN and a.pos != k.position.value:
             self._readback(found, "0RC's Pos", f"{a.pos:06X}", k.position,
                            f"the axis at {k.position.value:06X}", "readback-position")
         else:
             if k.homed.value is not True:
                 k.homed = Fact(True, LEARNT)
-            if not k.position.judged:
+            if k.position.status == UNKNOWN:
                 k.position = Fact(a.pos, LEARNT)
 
     def _unhomed_judged(self, a: ReadCurrentAnswer, found: list[Violation]) -> bool:

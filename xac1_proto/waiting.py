@@ -23,6 +23,7 @@ COMMAND: Final = "command"  # a well-formed command: owed its answer
 ERROR: Final = "error"  # a frame breaking the frame table, or a junk line: owed an alarm answer
 DISCARD: Final = "discard"  # sent during a move: discarded by the device (silent item 10)
 _NEVER: Final = float("inf")
+_deque_append: Final = deque.append  # (a global, not a look-up on the class at each line)
 
 # well-formed commands that raise no alarm of their own (our reading of vendor §6 and §7): an alarm
 # answer to one sent without any deviation is a latched alarm, never a new one (one with a notice may be
@@ -98,7 +99,7 @@ class Waiting(deque[WaitingLine]):
         return self[0] if self else None
 
     def append(self, line: WaitingLine) -> None:
-        deque.append(self, line)
+        _deque_append(self, line)
         if line.deadline is not None and line.deadline < self.due:
             self.due = line.deadline
 
@@ -106,10 +107,11 @@ class Waiting(deque[WaitingLine]):
         """The head line, taken out, when an answer of ``header`` (a command's, not an alarm) begun at
         ``t`` is its own: of its header, sent before ``t``, not discarded during a move unless it alone
         waits. None when the answer is not the head's (the engine then looks further down the queue)."""
-        if not self or self[0].header != header:
+        if not self:
             return None
         head = self[0]
-        if (t is not None and head.t_last is not None and head.t_last > t) \
+        if head.header != header \
+                or (t is not None and head.t_last is not None and head.t_last > t) \
                 or (head.kind == DISCARD and len(self) > 1):
             return None
         self.popleft()
