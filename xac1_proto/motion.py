@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Final
 
 from . import spec
 
@@ -57,9 +58,12 @@ class SpeedTable:
 DEFAULT_SPEEDS = SpeedTable(guessed=True)  # silent item 15: the vendor's tables are missing
 
 
+_LOW_RAMP_S: Final = spec.ACCEL_RAMP_S[1]
+
+
 def ramp_time(a: int) -> float:
     """Seconds from standstill to full speed for acceleration number ``a`` (0 or unknown: low)."""
-    return spec.ACCEL_RAMP_S.get(a, spec.ACCEL_RAMP_S[1])
+    return spec.ACCEL_RAMP_S.get(a, _LOW_RAMP_S)
 
 
 def move_time(distance: int, speed_pps: float, a: int) -> float:
@@ -67,7 +71,7 @@ def move_time(distance: int, speed_pps: float, a: int) -> float:
     distance = abs(distance)
     if distance == 0:
         return 0.0
-    ramp = ramp_time(a)
+    ramp = spec.ACCEL_RAMP_S.get(a, _LOW_RAMP_S)  # ``ramp_time(a)`` (a move's window prices up to three)
     if distance >= speed_pps * ramp:  # reaches full speed: ramp up + cruise + ramp down
         return distance / speed_pps + ramp
     return 2.0 * math.sqrt(distance * ramp / speed_pps)  # triangular
