@@ -216,8 +216,9 @@ def _tally(graded: tuple[tuple[spec.ViolationCode, spec.Severity], ...], sender:
     return codes, tuple(side_of(code, sender) for code in codes), tuple(worst.values())
 
 
-# a verdict (``_tuple_new(Verdict, fields)``) or violation from its fields in order, as ``_make`` builds it
-# but with no Python frame of its own (two verdicts an exchange; every field is given)
+# a verdict (``_tuple_new(Verdict, fields)``), violation or the fact an answer teaches from its fields in
+# order, as ``_make`` builds it but with no Python frame of its own (a NamedTuple's own ``__new__`` is a
+# Python function; two verdicts an exchange, a fact most answers; every field is given)
 _tuple_new: Final = tuple.__new__
 
 
@@ -814,7 +815,7 @@ class Conversation:
         self._latch(self.latch_state(), event, found, line, code)
         kind = ALARM_EVENTS[event]
         if kind.latches:
-            k.latched = Fact(code, LEARNT if k.latched.status == UNKNOWN else k.latched.status)
+            k.latched = _tuple_new(Fact, (code, LEARNT if k.latched.status == UNKNOWN else k.latched.status))
         if kind.owes_reset:
             self._unreset_alarm = True
         for name in _ALARM_FORGETS.get(code, ()):
@@ -902,7 +903,7 @@ class Conversation:
         """0CM: the mode sent; after 0CM0 the external I/O owns the controller until the next line."""
         k = self.knowledge
         mode = c.mode  # type: ignore[attr-defined]
-        k.mode = Fact(mode, KNOWN)
+        k.mode = _tuple_new(Fact, (mode, KNOWN))
         if mode == 0:  # silent item 11
             k.outputs, k.position = _NOT_KNOWN, _NOT_KNOWN
             if k.homed.value is not True:
@@ -911,7 +912,7 @@ class Conversation:
     def _on_write_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WP: the point is what was written."""
         k = self.knowledge
-        k.points[c.n] = Fact(PointData(c.v, c.a, c.o, c.pos), KNOWN)  # type: ignore[attr-defined]
+        k.points[c.n] = _tuple_new(Fact, (PointData(c.v, c.a, c.o, c.pos), KNOWN))  # type: ignore[attr-defined]
 
     def _on_store_current(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WC: the point stored at the position (V, A, O learnt: silent item 4)."""
@@ -921,7 +922,7 @@ class Conversation:
         if pos.status != UNKNOWN and a.pos != pos.value:
             self._readback(found, f"0WC{a.n:X}'s Pos", f"{a.pos:06X}", pos,
                            f"the axis at {pos.value:06X}", "readback-position")
-        k.points[a.n] = Fact(PointData(a.v, a.a, a.o, a.pos), LEARNT)
+        k.points[a.n] = _tuple_new(Fact, (PointData(a.v, a.a, a.o, a.pos), LEARNT))
 
     def _on_move_point(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0MP: homed; at the point (as known as the point); the OUT ports unknown after 0MP N (item 8)."""
@@ -930,16 +931,16 @@ class Conversation:
         k.homed = _HOMED
         point = k.point(c.n)
         if c.n and point.value is not None:
-            k.position = Fact(point.value.pos, point.status)
+            k.position = _tuple_new(Fact, (point.value.pos, point.status))
         else:  # homing, or a point not known: where the answer says the axis is (item 7), learnt
-            k.position = Fact(a.pos, LEARNT)  # type: ignore[attr-defined]
+            k.position = _tuple_new(Fact, (a.pos, LEARNT))  # type: ignore[attr-defined]
         if c.n:
             k.outputs = _NOT_KNOWN  # silent item 8
 
     def _on_move_direct(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0MV: homed, at the position sent."""
         k = self.knowledge
-        k.homed, k.position = _HOMED, Fact(c.pos, KNOWN)  # type: ignore[attr-defined]
+        k.homed, k.position = _HOMED, _tuple_new(Fact, (c.pos, KNOWN))  # type: ignore[attr-defined]
 
     def _on_read_outputs(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0RS: the OUT ports read back."""
@@ -948,13 +949,13 @@ class Conversation:
         if k.outputs.status != UNKNOWN and o != k.outputs.value:
             self._readback(found, "0RS's O", o, k.outputs, f"O={k.outputs.value}", "readback-outputs")
         elif k.outputs != (o, LEARNT):
-            k.outputs = Fact(o, LEARNT)
+            k.outputs = _tuple_new(Fact, (o, LEARNT))
 
     def _on_write_outputs(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0WS: the OUT ports are what was written."""
         k = self.knowledge
         if k.outputs != (c.o, KNOWN):  # type: ignore[attr-defined]
-            k.outputs = Fact(c.o, KNOWN)  # type: ignore[attr-defined]
+            k.outputs = _tuple_new(Fact, (c.o, KNOWN))  # type: ignore[attr-defined]
 
     def _on_read_version(self, c: Frame, a: Frame, found: list[Violation]) -> None:
         """0RV: the version read back."""
@@ -964,7 +965,7 @@ class Conversation:
             self._readback(found, "0RV", version, k.version, f"version {k.version.value}",
                            "readback-version")
         else:
-            k.version = Fact(version, LEARNT)
+            k.version = _tuple_new(Fact, (version, LEARNT))
 
     def _on_read_point(self, c: Frame, a: ReadPointAnswer, found: list[Violation]) -> None:
         """0RP: the point read back (against what was written or read before)."""
@@ -974,7 +975,7 @@ class Conversation:
         if fact.value is not None and seen != fact.value:
             self._readback(found, f"point {a.n:X}", seen.show(), fact, fact.value.show())
         elif fact.value is None:
-            k.points[a.n] = Fact(seen, LEARNT)
+            k.points[a.n] = _tuple_new(Fact, (seen, LEARNT))
 
     def _on_read_current(self, c: Frame, a: ReadCurrentAnswer, found: list[Violation]) -> None:
         """0RC: before homing N, V, A 0 and Pos FFFFFF (vendor §7 (3), whatever else is known); a homed
@@ -985,16 +986,16 @@ class Conversation:
             return
         k = self.knowledge
         if a.pos == spec.UNKNOWN_POSITION:  # the device states it is not homed: learnt, never judged (an
-            k.homed, k.position = Fact(False, LEARNT), _NOT_KNOWN  # unseen power cycle...)
+            k.homed, k.position = _tuple_new(Fact, (False, LEARNT)), _NOT_KNOWN  # unseen power cycle...)
             k.outputs = _NOT_KNOWN  # nothing is stated of the OUT ports across a power cycle
         elif k.position.status != UNKNOWN and a.pos != k.position.value:
             self._readback(found, "0RC's Pos", f"{a.pos:06X}", k.position,
                            f"the axis at {k.position.value:06X}", "readback-position")
         else:
             if k.homed.value is not True:
-                k.homed = Fact(True, LEARNT)
+                k.homed = _tuple_new(Fact, (True, LEARNT))
             if k.position.status == UNKNOWN:
-                k.position = Fact(a.pos, LEARNT)
+                k.position = _tuple_new(Fact, (a.pos, LEARNT))
 
     def _unhomed_judged(self, a: ReadCurrentAnswer, found: list[Violation]) -> bool:
         """readback-unhomed of a 0RC answer: FFFFFF with N, V or A not 0; a homed position while the axis
