@@ -127,17 +127,15 @@ def pytest_configure(config: pytest.Config) -> None:
 # ---- workers ----
 
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
-    """How many workers ``-n auto`` starts. ``-m "not slow"``: a core each and one more (the in-process
-    tests keep the cores busy but for their real-time waits: a pace, a timeout, a thread's tick; the one
-    more runs then, and more would only add their start-up and collection). Any run that may select slow
-    tests: two a core (those mostly wait on what they start: an xac1 process, a conformance run, a
-    timeout, chromium, tshark, so a second worker a core runs other tests meanwhile). None (xdist's own
-    count) when ``PYTEST_XDIST_AUTO_NUM_WORKERS`` says how many."""
+    """How many workers ``-n auto`` starts: a core each and one more. Every test waits on something in
+    real time at some point (an xac1 process, a conformance run, a timeout, a pace, chromium, tshark:
+    half of a slow test's time, a quarter of an in-process one's), and the one more runs meanwhile; more
+    would add their start-up and collection to the CPU, and load enough to crowd the tests that measure
+    time. None (xdist's own count) when ``PYTEST_XDIST_AUTO_NUM_WORKERS`` says how many."""
     if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
         return None
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    in_process_only = config.getoption("markexpr", "").split() == ["not", "slow"]
-    return cores + 1 if in_process_only else 2 * cores
+    return cores + 1
 
 
 def _required_tools(item: pytest.Item) -> list[str]:
