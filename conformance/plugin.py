@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime as _dt
+import functools
 import os
 import sys
 from pathlib import Path
@@ -245,7 +246,14 @@ def _run(config: pytest.Config) -> Xac1Run | None:
 
 
 def is_check(item: pytest.Item) -> bool:
-    return CHECKS_DIR in Path(str(item.path)).resolve().parents
+    return _in_checks(item.path)
+
+
+@functools.cache
+def _in_checks(path: Path) -> bool:
+    """The file at ``path`` lies below the checks' folder, links resolved; once a file, not once a test
+    (the collection hooks ask for every item: over a thousand in a project's own suite)."""
+    return CHECKS_DIR in path.resolve().parents
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -124,6 +124,20 @@ def pytest_configure(config: pytest.Config) -> None:
                    "(failed when CI is set), the reason naming the package")
 
 
+# ---- workers ----
+
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """How many workers ``-n auto`` starts: a core each and one more. Every test waits on something in
+    real time at some point (an xac1 process, a conformance run, a timeout, a pace, chromium, tshark:
+    half of a slow test's time, a quarter of an in-process one's), and the one more runs meanwhile; more
+    would add their start-up and collection to the CPU, and load enough to crowd the tests that measure
+    time. None (xdist's own count) when ``PYTEST_XDIST_AUTO_NUM_WORKERS`` says how many."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return cores + 1
+
+
 def _required_tools(item: pytest.Item) -> list[str]:
     return [tool for mark in item.iter_markers("requires_tool") for tool in mark.args]
 

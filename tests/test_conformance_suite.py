@@ -24,6 +24,11 @@ from xac1_proto.sim import DEVIATIONS, SimConfig, serve_tcp
 pytestmark = pytest.mark.slow  # every test runs xac1 conformance in a subprocess
 
 FAST = ["--examples", "8"]
+# The in-process simulator (xac1sim://, time_scale=0) has every answer due the moment its command is
+# written, so an answer is never late and a wait for one only ever ends in silence: the deviation runs
+# wait 0.05 s for it, not the simulator's default 0.2 s (a deviating device costs a drain or a timeout
+# a probe; nothing here is about timing).
+PROMPT = ["--timeout", "0.05"]
 
 # deviation -> a check (JUnit test name prefix) that must fail for it
 EXPECTED = {
@@ -102,7 +107,7 @@ def deviation_runs(tmp_path_factory):
     def one(name: str) -> tuple[int, set[str], str, dict[str, str]]:
         junit = base / f"{name}.xml"
         r = conformance(["--port", f"xac1sim://?time_scale=0&deviation={name}", "--junit", str(junit),
-                         *FAST], base)
+                         *FAST, *PROMPT], base)
         return (r.returncode, failed_checks(junit) if junit.exists() else set(), r.stdout[-2000:],
                 failure_messages(junit) if junit.exists() else {})
 

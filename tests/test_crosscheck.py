@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import IO
 
@@ -134,9 +135,37 @@ def _device_side(records: list[dict]) -> list[tuple[str, dict]]:
             for code, side in zip(r["violations"], r["sides"], strict=True) if side == "device"]
 
 
-def test_clean_simulator_gets_no_device_side_verdict(tmp_path):
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory) -> dict[str | None, list[dict] | BaseException]:
+    """Every recording of this module made at once, two at a time (each mostly waits on its suite's
+    timeouts): the clean simulator's (None) and each visible deviation's decoded records, or what went
+    wrong making it (raised by its own test)."""
+    base = tmp_path_factory.mktemp("crosscheck")
+
+    def one(deviation: str | None) -> list[dict] | BaseException:
+        folder = base / (deviation or "clean")
+        folder.mkdir()
+        try:
+            return _record(folder, deviation)
+        except Exception as exc:  # noqa: BLE001 - the recording's own test fails with it
+            return exc
+
+    names = [None, *sorted(EXPECTED)]
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        return dict(zip(names, pool.map(one, names), strict=True))
+
+
+def _recorded(recordings: dict[str | None, list[dict] | BaseException], deviation: str | None) -> list[dict]:
+    records = recordings[deviation]
+    if isinstance(records, BaseException):
+        raise records
+    return records
+
+
+@pytest.mark.timeout(600)  # the first one waits for all fourteen recordings of the module fixture
+def test_clean_simulator_gets_no_device_side_verdict(recordings):
     """The whole suite, then an emergency stop press, release and reset: nothing is the device's fault."""
-    records = _record(tmp_path, None)
+    records = _recorded(recordings, None)
     assert sum(1 for r in records if r.get("type") == "frame") > 200
     answers = [r for r in records if r.get("type") == "frame" and r["dir"] == "device"]
     assert any(r["raw"] == b"0%%0E\r\n".hex() for r in answers)  # the stop was recorded
@@ -149,9 +178,10 @@ def test_the_lists_cover_every_deviation():
     assert set(EXPECTED) | INVISIBLE == set(DEVIATIONS) and not set(EXPECTED) & INVISIBLE
 
 
+@pytest.mark.timeout(600)  # the first one waits for all fourteen recordings of the module fixture
 @pytest.mark.parametrize("deviation", sorted(EXPECTED))
-def test_every_visible_deviation_is_named_on_the_device_side(tmp_path, deviation):
+def test_every_visible_deviation_is_named_on_the_device_side(recordings, deviation):
     """Each deviation the line can show gets at least one device-side violation in the decoded recording."""
-    records = _record(tmp_path, deviation)
+    records = _recorded(recordings, deviation)
     found = {code for code, _ in _device_side(records)}
     assert found & EXPECTED[deviation], f"{deviation}: device-side {sorted(found)} in {len(records)} records"

@@ -102,53 +102,69 @@ def test_inert_outside_the_main_thread() -> None:
     assert result == [True] and signal.getsignal(signal.SIGTERM) == before
 
 
-# A signal raised at the n-th traced line executed inside ``end.stop.wait()``, for every n until the
-# wait runs out of lines: the handler runs right there (``raise_signal`` runs it before returning).
-SIGNAL_AT_EVERY_LINE_OF_WAIT = """
-import json, os, signal, sys, time
-from xac1_proto.signals import OrderlyEnd
-
-results = []
-with open(os.devnull, "w") as devnull:
-    n = 1
-    while True:
-        seen, landed = 0, 0.0
-
-        def trace(frame, event, arg):
-            global seen, landed
-            if event == "line":
-                seen += 1
-                if seen == n:
-                    landed = time.monotonic()
-                    signal.raise_signal(signal.SIGTERM)
-            return trace
-
-        with OrderlyEnd("t", "x", err=devnull) as end:
-            end.begin()
-            sys.settrace(trace)
-            woke = end.stop.wait(5.0)
-            sys.settrace(None)
-            if seen < n:  # the wait had fewer lines than n: every landing place was tried
-                break
-            results.append([n, woke, time.monotonic() - landed])
-        n += 1
-print(json.dumps(results))
-"""
-
-
 @pytest.mark.slow  # starts a process
 def test_a_signal_landing_anywhere_inside_stop_wait_wakes_it() -> None:
     """``xac1 sim`` waits on ``end.stop`` in its main thread; the signal handler sets it in that same
     thread, wherever the signal lands. A lock-taking event deadlocks when it lands while ``wait()``
-    holds the event's lock (``xac1 sim`` once hung on SIGTERM so, under load); ``stop`` takes none: at
-    every line of ``wait()`` the signal wakes it at once, not at the end of its 5 s (where it lands just
-    before ``select``, the wake-up fd does). A fresh interpreter, so a deadlock is a timeout, not a hung
-    suite."""
+    holds the event's lock (``xac1 sim`` once hung on SIGTERM under load); ``stop`` takes none: at
+    every line of ``wait()`` up to its ``select`` the signal wakes it at once, not at the end of its 5 s
+    (where it lands just before ``select``, the wake-up fd does), and at every line after it (run once
+    ``select`` ran out) the wait still ends with the flag set. A fresh interpreter, so a deadlock is a
+    timeout, not a hung suite."""
     r = subprocess.run([sys.executable, "-c", SIGNAL_AT_EVERY_LINE_OF_WAIT], capture_output=True,
                        text=True, timeout=60)
     assert r.returncode == 0, r.stderr
-    results = json.loads(r.stdout)
+    select_at, results = json.loads(r.stdout)
     assert len(results) >= 3  # the wait has lines to land on
+    assert 1 < select_at < len(results)  # lines before select, select, and lines after it were landed on
     assert all(woke for _, woke, _ in results), results
     # at once, not after the 5 s wait (the margin is for a loaded CI machine's scheduling)
     assert max(took for _, _, took in results) < 2.5, results
+
+
+# A signal raised at the n-th traced line executed inside ``end.stop.wait()``, for every n until the
+# wait runs out of lines: the handler runs right there (``raise_signal`` runs it before returning). A
+# line after the one calling ``select`` runs only once ``select`` has run out (nothing else wakes it), so
+# those landings wait 0.05 s, not 5 s: a first wait with no signal finds where ``select`` is called.
+SIGNAL_AT_EVERY_LINE_OF_WAIT = """
+import json, os, select, signal, sys, time  # select: loaded, as for every wait but a process's first
+from xac1_proto.signals import OrderlyEnd, StopFlag
+
+WAIT = StopFlag.wait.__code__
+
+
+def land(n, timeout):
+    \"\"\"Wait with a SIGTERM raised at the n-th traced line (none for n = 0): the lines traced (in
+    wait or not, line number), whether the wait woke with the flag set, when the signal landed.\"\"\"
+    lines, landed = [], [None]
+
+    def trace(frame, event, arg):
+        if event == "line":
+            lines.append((frame.f_code is WAIT, frame.f_lineno))
+            if len(lines) == n:
+                landed[0] = time.monotonic()
+                signal.raise_signal(signal.SIGTERM)
+        return trace
+
+    with open(os.devnull, "w") as devnull, OrderlyEnd("t", "x", err=devnull) as end:
+        end.begin()
+        sys.settrace(trace)
+        woke = end.stop.wait(timeout)
+        sys.settrace(None)
+    return lines, woke, landed[0]
+
+
+unsignalled, _, _ = land(0, 0.05)
+select_line = next(line for in_wait, line in unsignalled
+                   if in_wait and "select.select(" in open(WAIT.co_filename).readlines()[line - 1])
+select_at = unsignalled.index((True, select_line)) + 1
+results = []
+n = 1
+while True:
+    lines, woke, landed = land(n, 5.0 if n <= select_at else 0.05)
+    if landed is None:  # the wait had fewer lines than n: every landing place was tried
+        break
+    results.append([n, woke, time.monotonic() - landed])
+    n += 1
+print(json.dumps([select_at, results]))
+"""
