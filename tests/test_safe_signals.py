@@ -340,3 +340,41 @@ def test_conformance_signal_once_the_verdict_is_decided_says_it_stands(tmp_path:
     assert done.returncode == 4, done.stdout[-2000:] + done.stderr[-2000:]
     assert "SIGTERM ignored: the verdict is decided" in done.stderr and "the verdict stands" in done.stderr
     assert not BAD.search(done.stdout + done.stderr)
+
+
+INSIDE_A_MODULE_LOCK = """
+import _thread, os, signal, sys, time
+from xac1_proto.signals import Interrupted, OrderlyEnd
+fired = []
+def tracer(frame, event, arg):
+    if frame.f_code.co_name != "acquire" or frame.f_code.co_filename != "<frozen importlib._bootstrap>":
+        return None
+    def local(f, ev, a):  # the import's module lock has marked this thread as blocked on it
+        if ev == "line" and not fired and f.f_globals["_blocking_on"].get(_thread.get_ident()) is not None:
+            fired.append(1)
+            os.kill(os.getpid(), signal.SIGTERM)
+        return local
+    return local
+with OrderlyEnd("xac1 test", "stopping") as end:
+    try:
+        sys.settrace(tracer)
+        import json.tool  # not imported yet
+        sys.settrace(None)
+        end.begin()
+        time.sleep(2)
+        print("not interrupted")
+    except Interrupted as exc:
+        print(f"interrupted by {exc.name}, early={end.early}, fired={len(fired)}")
+"""
+
+
+@pytest.mark.slow  # starts a process: the moment needs a fresh interpreter's imports
+def test_a_signal_inside_an_imports_module_lock_is_raised_after_the_import() -> None:
+    """A signal handled while an import holds this thread's place in importlib's module locks: the
+    handler imports nothing (an import there took that place and the import it interrupted failed with
+    ``KeyError`` in ``_ModuleLock.acquire``, as CI saw ``xac1 sim`` end with a traceback); the import
+    completes and ``Interrupted`` is raised after it, before the run begins."""
+    done = subprocess.run([sys.executable, "-c", INSIDE_A_MODULE_LOCK], cwd=ROOT, capture_output=True,
+                          text=True, timeout=60, stdin=subprocess.DEVNULL)
+    said = "interrupted by SIGTERM, early=True, fired=1\n"
+    assert (done.returncode, done.stdout, done.stderr) == (0, said, "")

@@ -45,7 +45,9 @@ Typical use::
 
 from __future__ import annotations
 
+import _thread  # (built in, as gc: a signal handler imports nothing, see ``unsafe_point``)
 import contextlib
+import gc
 import os
 import signal
 import sys
@@ -65,8 +67,6 @@ _FINALIZER_NAMES: Final = ("__del__", "__set_name__")  # dropped, or turned into
 def unsafe_point(frame: FrameType | None) -> str | None:
     """Why an exception raised where ``frame`` runs would be lost or turned into another error (inside
     an import, a garbage-collection callback, a finalizer); None at a safe point."""
-    import gc  # built in: nothing is loaded
-
     callbacks = {getattr(getattr(cb, "__func__", cb), "__code__", None) for cb in gc.callbacks}
     while frame is not None:
         code = frame.f_code
@@ -89,8 +89,6 @@ def _send(signum: int, delay: float) -> None:
 def send_later(signum: int, delay: float = 0.002) -> None:
     """Send ``signum`` to this process again after ``delay`` seconds, from a bare helper thread
     (``threading.Thread.start`` waits for the thread, and the signal could land in that wait)."""
-    import _thread
-
     _thread.start_new_thread(_send, (signum, delay))
 
 
